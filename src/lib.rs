@@ -1,0 +1,13 @@
+#![doc = include_str!("../README.md")]
+#![warn(missing_docs)]
+
+pub mod budget;
+pub mod distance;
+pub mod mesh;
+pub mod multires;
+
+/// The types most users need.
+pub mod prelude {
+    pub use crate::mesh::{IndexedMesh, MeshError};
+    pub use crate::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+}

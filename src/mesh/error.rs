@@ -1,0 +1,109 @@
+//! The error type of mesh import and validation.
+
+use thiserror::Error;
+
+/// Result alias for mesh import and validation.
+pub type MeshResult<T> = Result<T, MeshError>;
+
+/// Everything that can be wrong with an input mesh. Each variant names the defect and where
+/// it is, so the message can be shown to a user as it is.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum MeshError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file extension names no format this crate reads.
+    #[error("unsupported mesh format: {path} (expected .obj, .ply, .gltf or .glb)")]
+    UnsupportedFormat {
+        /// The file.
+        path: String,
+    },
+    /// The file could not be parsed.
+    #[error("{format} parse error at {location}: {message}")]
+    Parse {
+        /// `OBJ`, `PLY`, `glTF`.
+        format: &'static str,
+        /// Where: `line 12`, `byte 40`, `accessor 3`, ...
+        location: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The mesh has no vertices or no triangles.
+    #[error("the mesh is empty: it has no vertices or no triangles")]
+    Empty,
+    /// Every triangle was degenerate, so nothing is left.
+    #[error("all {count} triangles are degenerate (repeated vertex or zero area)")]
+    AllTrianglesDegenerate {
+        /// How many triangles there were.
+        count: usize,
+    },
+    /// The index buffer length is not a multiple of three.
+    #[error("index count {count} is not a multiple of 3")]
+    IndexCountNotMultipleOfThree {
+        /// The index count.
+        count: usize,
+    },
+    /// A triangle refers to a vertex that does not exist.
+    #[error("index out of range: triangle {triangle} uses vertex {index}, but there are only {vertex_count} vertices")]
+    IndexOutOfRange {
+        /// The triangle.
+        triangle: usize,
+        /// The offending index.
+        index: u32,
+        /// How many vertices there are.
+        vertex_count: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    #[error("non-finite {attribute} coordinate (NaN or infinite) at vertex {vertex}")]
+    NonFiniteCoordinate {
+        /// The attribute (`POSITION`, `NORMAL`, `TEXCOORD_0`).
+        attribute: &'static str,
+        /// The vertex.
+        vertex: usize,
+    },
+    /// An attribute does not have one entry per vertex.
+    #[error("unequal attribute counts: {attribute} has {found} entries, POSITION has {expected}")]
+    AttributeCountMismatch {
+        /// The attribute.
+        attribute: &'static str,
+        /// The position count.
+        expected: usize,
+        /// The attribute's count.
+        found: usize,
+    },
+    /// A glTF document is structurally invalid (unresolved references, bad GLB container,
+    /// missing buffers, ...).
+    #[error("invalid glTF: {message}")]
+    Gltf {
+        /// What is wrong, including the glTF path where known (`accessors[2].bufferView`).
+        message: String,
+    },
+}
+
+impl MeshError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.display().to_string(),
+            source,
+        }
+    }
+
+    pub(crate) fn parse(
+        format: &'static str,
+        location: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Self::Parse {
+            format,
+            location: location.into(),
+            message: message.into(),
+        }
+    }
+}

@@ -1,0 +1,658 @@
+//! Building the progressive sequence: QEM-ranked half-edge collapses.
+//!
+//! Garland & Heckbert, "Surface Simplification Using Quadric Error Metrics" (1997), for the
+//! error metric; Hoppe, "Progressive Meshes" (1996), for recording every collapse so that it
+//! can be undone; Hoxha's MR-model and MOM for storing triangles in removal order.
+//!
+//! The phases, in the order they run:
+//! 1. weld vertices by position, so attribute seams are one point to the topology;
+//! 2. build vertex -> triangle adjacency and classify every position (manifold, border,
+//!    complex, pinned);
+//! 3. fill quadrics: face planes, plus edge planes along borders and attribute seams;
+//! 4. rank every position's cheapest valid half-edge collapse in a priority queue;
+//! 5. pop, re-validate, perform, record, and re-rank the one-ring of the surviving vertex;
+//! 6. lay the triangles out in removal order and pack the records.
+
+use super::quadric::Quadric;
+use super::{ProgressiveMesh, StepHeader};
+use crate::mesh::{IndexedMesh, MeshError, weld_positions};
+use glam::DVec3;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+/// Settings of [`ProgressiveMesh::build`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildOptions {
+    /// Stop collapsing at this many triangles (the base mesh may end up larger when nothing
+    /// more can collapse without breaking the surface). Default: `0`, as coarse as possible.
+    pub min_triangles: usize,
+    /// Stop collapsing when the next collapse's error (relative to the bounding-box diagonal)
+    /// would exceed this. Default: `f32::INFINITY`.
+    pub max_error: f32,
+    /// How strongly open borders keep their shape, relative to the faces. Default: `10.0`
+    /// (meshoptimizer's value).
+    pub border_weight: f64,
+    /// Reject a collapse when a moved triangle's normal turns by more than this angle, as a
+    /// cosine. Default: `0.25` (about 75°; meshoptimizer's value). `0.0` is the plain
+    /// "never flip" rule.
+    pub min_normal_cos: f64,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            min_triangles: 0,
+            max_error: f32::INFINITY,
+            border_weight: 10.0,
+            min_normal_cos: 0.25,
+        }
+    }
+}
+
+/// How a position may take part in collapses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// Interior of a manifold fan: may collapse along any edge.
+    Manifold,
+    /// On an open border: may collapse only along a border edge, so the outline keeps its
+    /// vertices in order.
+    Border,
+    /// Non-manifold edge, several fans, or inconsistent winding: never removed.
+    Complex,
+    /// Pinned by the caller (for example a vertex of another region): never removed and never
+    /// a target.
+    Pinned,
+}
+
+/// One performed collapse, before the final layout.
+struct Collapse {
+    removed: [u32; 2],
+    removed_count: u8,
+    /// Range of `rewrites` this collapse wrote.
+    rewrites: std::ops::Range<usize>,
+    error: f32,
+}
+
+/// One corner rewrite: triangle, corner, old vertex, new vertex.
+type Rewrite = (u32, u8, u32, u32);
+
+struct Builder<'a> {
+    mesh: &'a IndexedMesh,
+    options: &'a BuildOptions,
+    /// Attribute vertex -> position id (the smallest vertex index at that position).
+    pos: Vec<u32>,
+    points: Vec<DVec3>,
+    tris: Vec<[u32; 3]>,
+    alive: Vec<bool>,
+    /// Position id -> incident live triangles.
+    adj: Vec<Vec<u32>>,
+    kind: Vec<Kind>,
+    quadrics: Vec<Quadric>,
+    version: Vec<u32>,
+    heap: BinaryHeap<Reverse<(u64, u32, u32, u32)>>,
+    collapses: Vec<Collapse>,
+    rewrites: Vec<Rewrite>,
+    live_triangles: usize,
+    /// False when every position has one attribute vertex: no seams to respect.
+    has_seams: bool,
+    inv_diagonal: f64,
+    // Scratch buffers, reused across evaluations.
+    scratch_map: Vec<(u32, u32)>,
+    scratch_a: Vec<u32>,
+    scratch_b: Vec<u32>,
+}
+
+/// Positions of a triangle's corners that are not `p`, in winding order after `p`.
+#[inline]
+fn others(tri: [u32; 3], pos: &[u32], p: u32) -> Option<(usize, u32, u32)> {
+    let q = [pos[tri[0] as usize], pos[tri[1] as usize], pos[tri[2] as usize]];
+    (0..3)
+        .find(|&k| q[k] == p)
+        .map(|k| (k, q[(k + 1) % 3], q[(k + 2) % 3]))
+}
+
+impl<'a> Builder<'a> {
+    fn new(mesh: &'a IndexedMesh, options: &'a BuildOptions, pinned: Option<&[bool]>) -> Self {
+        let weld = weld_positions(&mesh.positions);
+        let n = mesh.positions.len();
+        let points = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+        let tris: Vec<[u32; 3]> = mesh
+            .indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect();
+        let mut adj = vec![Vec::new(); n];
+        for (t, tri) in tris.iter().enumerate() {
+            for &v in tri {
+                adj[weld.remap[v as usize] as usize].push(t as u32);
+            }
+        }
+        let diagonal = mesh.diagonal() as f64;
+        let mut builder = Self {
+            mesh,
+            options,
+            pos: weld.remap,
+            points,
+            alive: vec![true; tris.len()],
+            live_triangles: tris.len(),
+            has_seams: weld.unique < n,
+            tris,
+            adj,
+            kind: vec![Kind::Manifold; n],
+            quadrics: vec![Quadric::default(); n],
+            version: vec![0; n],
+            heap: BinaryHeap::new(),
+            collapses: Vec::new(),
+            rewrites: Vec::new(),
+            inv_diagonal: if diagonal > 0.0 { 1.0 / diagonal } else { 1.0 },
+            scratch_map: Vec::new(),
+            scratch_a: Vec::new(),
+            scratch_b: Vec::new(),
+        };
+        builder.classify(pinned);
+        builder
+    }
+
+    /// Phase 2: manifold, border, complex or pinned, per position.
+    fn classify(&mut self, pinned: Option<&[bool]>) {
+        let mut neighbors: Vec<(u32, i32, u32)> = Vec::new();
+        for p in 0..self.adj.len() as u32 {
+            if self.pos[p as usize] != p {
+                continue;
+            }
+            // For every directed edge p->x (+1) and x->p (-1) around p, count uses.
+            neighbors.clear();
+            for &t in &self.adj[p as usize] {
+                let (_, a, b) =
+                    others(self.tris[t as usize], &self.pos, p).expect("adjacency is consistent");
+                neighbors.push((a, 1, t));
+                neighbors.push((b, -1, t));
+            }
+            neighbors.sort_unstable();
+            let mut kind = Kind::Manifold;
+            let mut border_edges = 0;
+            let mut i = 0;
+            while i < neighbors.len() {
+                let x = neighbors[i].0;
+                let mut j = i;
+                let (mut out, mut inc) = (0, 0);
+                while j < neighbors.len() && neighbors[j].0 == x {
+                    if neighbors[j].1 > 0 {
+                        out += 1;
+                    } else {
+                        inc += 1;
+                    }
+                    j += 1;
+                }
+                match (out, inc) {
+                    (1, 1) => {}
+                    (1, 0) | (0, 1) => border_edges += 1,
+                    _ => kind = Kind::Complex,
+                }
+                i = j;
+            }
+            let distinct = {
+                let mut d = 0;
+                let mut last = u32::MAX;
+                for &(x, _, _) in &neighbors {
+                    if x != last {
+                        d += 1;
+                        last = x;
+                    }
+                }
+                d
+            };
+            let tri_count = self.adj[p as usize].len();
+            if kind == Kind::Manifold {
+                // One fan: as many triangles as neighbours when closed, one fewer when open.
+                kind = match border_edges {
+                    0 if tri_count == distinct => Kind::Manifold,
+                    2 if tri_count + 1 == distinct => Kind::Border,
+                    _ => Kind::Complex,
+                };
+            }
+            if tri_count == 0 {
+                kind = Kind::Complex;
+            }
+            self.kind[p as usize] = kind;
+        }
+        if let Some(pinned) = pinned {
+            for (v, &is_pinned) in pinned.iter().enumerate() {
+                if is_pinned {
+                    self.kind[self.pos[v] as usize] = Kind::Pinned;
+                }
+            }
+        }
+    }
+
+    /// Phase 3: face quadrics, and edge quadrics that hold borders and seams in place.
+    fn fill_quadrics(&mut self) {
+        for tri in &self.tris {
+            let [a, b, c] = tri.map(|v| self.pos[v as usize]);
+            let (pa, pb, pc) = (
+                self.points[a as usize],
+                self.points[b as usize],
+                self.points[c as usize],
+            );
+            let cross = (pb - pa).cross(pc - pa);
+            let len = cross.length();
+            if len == 0.0 {
+                continue;
+            }
+            let n = cross / len;
+            // sqrt(area) weights scale the error linearly with size, which keeps
+            // silhouettes better than area weights (meshoptimizer does the same).
+            let q = Quadric::from_plane(n, -n.dot(pa), len.sqrt());
+            for p in [a, b, c] {
+                self.quadrics[p as usize].add(&q);
+            }
+        }
+        // Border edges: directed edges with no opposite twin. Seam edges: an edge whose two
+        // triangles use different attribute vertices at either end.
+        for t in 0..self.tris.len() {
+            let tri = self.tris[t];
+            for k in 0..3 {
+                let (v0, v1, v2) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                let (p0, p1) = (self.pos[v0 as usize], self.pos[v1 as usize]);
+                let mut twins = 0;
+                let mut seam = false;
+                for &s in &self.adj[p0 as usize] {
+                    if s as usize == t {
+                        continue;
+                    }
+                    let other = self.tris[s as usize];
+                    for j in 0..3 {
+                        let (w0, w1) = (other[j], other[(j + 1) % 3]);
+                        if self.pos[w0 as usize] == p1 && self.pos[w1 as usize] == p0 {
+                            twins += 1;
+                            seam |= w0 != v1 || w1 != v0;
+                        }
+                    }
+                }
+                let weight = match (twins, seam) {
+                    (0, _) => self.options.border_weight,
+                    (1, true) => 0.5,
+                    _ => continue,
+                };
+                let (a, b, c) = (
+                    self.points[p0 as usize],
+                    self.points[p1 as usize],
+                    self.points[self.pos[v2 as usize] as usize],
+                );
+                let e = b - a;
+                let len_sq = e.length_squared();
+                if len_sq == 0.0 {
+                    continue;
+                }
+                // The plane through the edge, perpendicular to the triangle.
+                let perp = ((c - a) * len_sq - e * (c - a).dot(e)).normalize_or_zero();
+                if perp == DVec3::ZERO {
+                    continue;
+                }
+                let q = Quadric::from_plane(perp, -perp.dot(a), len_sq.sqrt() * weight);
+                self.quadrics[p0 as usize].add(&q);
+                self.quadrics[p1 as usize].add(&q);
+            }
+        }
+    }
+
+    /// Collects the distinct neighbour positions of `p` into `out`.
+    fn neighbors_into(&self, p: u32, out: &mut Vec<u32>) {
+        out.clear();
+        for &t in &self.adj[p as usize] {
+            for &v in &self.tris[t as usize] {
+                let q = self.pos[v as usize];
+                if q != p {
+                    out.push(q);
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+    }
+
+    fn is_border_edge(&self, u: u32, w: u32) -> bool {
+        self.adj[u as usize]
+            .iter()
+            .filter(|&&t| self.tris[t as usize].iter().any(|&v| self.pos[v as usize] == w))
+            .count()
+            == 1
+    }
+
+    /// True when the two triangles on edge `u-x` use different attribute vertices at either
+    /// end.
+    fn is_seam_edge(&self, u: u32, x: u32) -> bool {
+        let mut first: Option<(u32, u32)> = None;
+        for &t in &self.adj[u as usize] {
+            let tri = self.tris[t as usize];
+            let (Some(ku), Some(kx)) = (
+                tri.iter().position(|&v| self.pos[v as usize] == u),
+                tri.iter().position(|&v| self.pos[v as usize] == x),
+            ) else {
+                continue;
+            };
+            let wedges = (tri[ku], tri[kx]);
+            match first {
+                None => first = Some(wedges),
+                Some(f) if f != wedges => return true,
+                Some(_) => {}
+            }
+        }
+        false
+    }
+
+    /// True when any edge at `u` is a seam edge. `scratch` receives u's neighbours.
+    fn touches_seam(&self, u: u32, scratch: &mut Vec<u32>) -> bool {
+        self.neighbors_into(u, scratch);
+        scratch.iter().any(|&x| self.is_seam_edge(u, x))
+    }
+
+    /// Every rule a half-edge collapse `u -> w` must pass; fills `scratch_map` with the
+    /// attribute-vertex mapping (old -> new) when it does.
+    fn is_valid(&mut self, u: u32, w: u32) -> bool {
+        let mut map = std::mem::take(&mut self.scratch_map);
+        let mut nu = std::mem::take(&mut self.scratch_a);
+        let mut nw = std::mem::take(&mut self.scratch_b);
+        let ok = self.check_collapse(u, w, &mut map, &mut nu, &mut nw);
+        self.scratch_map = map;
+        self.scratch_a = nu;
+        self.scratch_b = nw;
+        ok
+    }
+
+    fn check_collapse(
+        &self,
+        u: u32,
+        w: u32,
+        map: &mut Vec<(u32, u32)>,
+        nu: &mut Vec<u32>,
+        nw: &mut Vec<u32>,
+    ) -> bool {
+        map.clear();
+        // Triangles on the edge u-w: they disappear. Their corners tell which attribute
+        // vertex at w replaces each attribute vertex at u (seams collapse side by side).
+        let mut edge_tris = 0;
+        for &t in &self.adj[u as usize] {
+            let tri = self.tris[t as usize];
+            let (Some(ku), Some(kw)) = (
+                tri.iter().position(|&v| self.pos[v as usize] == u),
+                tri.iter().position(|&v| self.pos[v as usize] == w),
+            ) else {
+                continue;
+            };
+            edge_tris += 1;
+            let (a, b) = (tri[ku], tri[kw]);
+            match map.iter().find(|m| m.0 == a) {
+                Some(&(_, existing)) if existing != b => return false,
+                Some(_) => {}
+                None => map.push((a, b)),
+            }
+        }
+        if edge_tris == 0 || edge_tris > 2 {
+            return false;
+        }
+        // Never erase a whole component: w must keep at least one triangle.
+        if self.adj[u as usize].len() + self.adj[w as usize].len() == 2 * edge_tris {
+            return false;
+        }
+        // A vertex on an attribute seam (or at the end of one) moves only along the seam;
+        // anything else would drag one side's attributes across to the other.
+        if self.has_seams && self.touches_seam(u, nu) && !self.is_seam_edge(u, w) {
+            return false;
+        }
+        // Link condition: the only common neighbours of u and w are the apexes of the edge's
+        // triangles. Anything else would pinch the surface into a non-manifold edge.
+        self.neighbors_into(u, nu);
+        self.neighbors_into(w, nw);
+        let common = nu.iter().filter(|x| nw.binary_search(x).is_ok()).count();
+        if common != edge_tris {
+            return false;
+        }
+        let pu = self.points[u as usize];
+        let pw = self.points[w as usize];
+        for &t in &self.adj[u as usize] {
+            let tri = self.tris[t as usize];
+            let (k, a, b) = others(tri, &self.pos, u).expect("adjacency is consistent");
+            if a == w || b == w {
+                continue;
+            }
+            // Every attribute vertex at u needs a partner at w, or a seam would tear.
+            if !map.iter().any(|m| m.0 == tri[k]) {
+                return false;
+            }
+            // No triangle (w, a, b) may exist already (the tetrahedron case).
+            let duplicate = self.adj[w as usize].iter().any(|&s| {
+                let o = self.tris[s as usize];
+                let has = |p: u32| o.iter().any(|&v| self.pos[v as usize] == p);
+                has(a) && has(b)
+            });
+            if duplicate {
+                return false;
+            }
+            // No flip: the moved triangle must keep facing the same way.
+            let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
+            let before = (pa - pu).cross(pb - pu);
+            let after = (pa - pw).cross(pb - pw);
+            let dot = before.dot(after);
+            let lengths = (before.length_squared() * after.length_squared()).sqrt();
+            if dot <= self.options.min_normal_cos * lengths || lengths == 0.0 {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Phase 4: the cheapest valid collapse out of `u`, pushed onto the queue.
+    fn rank(&mut self, u: u32) {
+        self.version[u as usize] = self.version[u as usize].wrapping_add(1);
+        // A step records its corner rewrites in a u16.
+        if !matches!(self.kind[u as usize], Kind::Manifold | Kind::Border)
+            || self.adj[u as usize].is_empty()
+            || 3 * self.adj[u as usize].len() > usize::from(u16::MAX)
+        {
+            return;
+        }
+        let mut nu = std::mem::take(&mut self.scratch_a);
+        self.neighbors_into(u, &mut nu);
+        let mut candidates: Vec<(f64, u32)> = nu
+            .iter()
+            .filter(|&&w| self.kind[w as usize] != Kind::Pinned)
+            .filter(|&&w| self.kind[u as usize] != Kind::Border || self.is_border_edge(u, w))
+            .map(|&w| {
+                let p = self.points[w as usize];
+                let e = Quadric::merged_error(
+                    &self.quadrics[u as usize],
+                    &self.quadrics[w as usize],
+                    p,
+                );
+                (e, w)
+            })
+            .collect();
+        self.scratch_a = nu;
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for (cost, w) in candidates {
+            if self.is_valid(u, w) {
+                self.heap.push(Reverse((
+                    cost.to_bits(),
+                    u,
+                    w,
+                    self.version[u as usize],
+                )));
+                return;
+            }
+        }
+    }
+
+    /// Phase 5: removes the edge's triangles, moves u's corners to w, records both.
+    fn perform(&mut self, u: u32, w: u32, cost: f64) {
+        let rewrite_start = self.rewrites.len();
+        let mut removed = [u32::MAX; 2];
+        let mut removed_count = 0u8;
+        let map = std::mem::take(&mut self.scratch_map);
+        let adj_u = std::mem::take(&mut self.adj[u as usize]);
+        for &t in &adj_u {
+            let tri = self.tris[t as usize];
+            let on_edge = tri.iter().any(|&v| self.pos[v as usize] == w);
+            if on_edge {
+                self.alive[t as usize] = false;
+                self.live_triangles -= 1;
+                removed[removed_count as usize] = t;
+                removed_count += 1;
+                for &v in &tri {
+                    let p = self.pos[v as usize];
+                    if p != u {
+                        let list = &mut self.adj[p as usize];
+                        if let Some(i) = list.iter().position(|&s| s == t) {
+                            list.swap_remove(i);
+                        }
+                    }
+                }
+            } else {
+                for (k, &v) in tri.iter().enumerate() {
+                    if self.pos[v as usize] == u {
+                        let new = map
+                            .iter()
+                            .find(|m| m.0 == v)
+                            .map(|m| m.1)
+                            .expect("validated collapse maps every wedge");
+                        self.tris[t as usize][k] = new;
+                        self.rewrites.push((t, k as u8, v, new));
+                    }
+                }
+                self.adj[w as usize].push(t);
+            }
+        }
+        self.scratch_map = map;
+        let q = self.quadrics[u as usize];
+        self.quadrics[w as usize].add(&q);
+        let error = (cost.sqrt() * self.inv_diagonal) as f32;
+        let previous = self.collapses.last().map_or(0.0, |c| c.error);
+        self.collapses.push(Collapse {
+            removed,
+            removed_count,
+            rewrites: rewrite_start..self.rewrites.len(),
+            // The table is monotone: a level's error is the largest collapse error so far.
+            error: error.max(previous),
+        });
+        self.version[u as usize] = self.version[u as usize].wrapping_add(1);
+    }
+
+    fn run(&mut self, progress: &mut dyn FnMut(usize, usize)) {
+        self.fill_quadrics();
+        for u in 0..self.adj.len() as u32 {
+            if self.pos[u as usize] == u {
+                self.rank(u);
+            }
+        }
+        let total = self.tris.len();
+        let mut ring = Vec::new();
+        while let Some(Reverse((bits, u, w, version))) = self.heap.pop() {
+            if self.live_triangles <= self.options.min_triangles {
+                break;
+            }
+            if version != self.version[u as usize] {
+                continue;
+            }
+            let cost = f64::from_bits(bits);
+            if (cost.sqrt() * self.inv_diagonal) as f32 > self.options.max_error {
+                break;
+            }
+            // Neighbourhoods change under earlier collapses: check again before acting.
+            if !self.is_valid(u, w) {
+                self.rank(u);
+                continue;
+            }
+            self.perform(u, w, cost);
+            self.neighbors_into(w, &mut ring);
+            self.rank(w);
+            for &x in &ring {
+                self.rank(x);
+            }
+            if self.collapses.len() % 4096 == 0 {
+                progress(total - self.live_triangles, total);
+            }
+        }
+        progress(total - self.live_triangles, total);
+    }
+
+    /// Phase 6: removal-order layout and packed records.
+    fn finish(self) -> ProgressiveMesh {
+        let tri_count = self.tris.len();
+        let mut slot = vec![u32::MAX; tri_count];
+        let mut order: Vec<u32> = Vec::with_capacity(tri_count);
+        for (t, &alive) in self.alive.iter().enumerate() {
+            if alive {
+                order.push(t as u32);
+            }
+        }
+        let base_triangles = order.len();
+        for c in self.collapses.iter().rev() {
+            order.extend_from_slice(&c.removed[..c.removed_count as usize]);
+        }
+        for (s, &t) in order.iter().enumerate() {
+            slot[t as usize] = s as u32;
+        }
+        // The full-detail index buffer, in slot order, with the original corners.
+        let mut indices = Vec::with_capacity(3 * tri_count);
+        for &t in &order {
+            indices.extend_from_slice(&self.mesh.indices[3 * t as usize..3 * t as usize + 3]);
+        }
+        let mut steps = Vec::with_capacity(self.collapses.len());
+        let mut corners = Vec::with_capacity(self.rewrites.len());
+        let mut pairs: Vec<[u32; 2]> = Vec::with_capacity(self.collapses.len() + 16);
+        let mut errors = Vec::with_capacity(self.collapses.len());
+        for c in &self.collapses {
+            let first_pair = pairs.len();
+            for &(t, k, old, new) in &self.rewrites[c.rewrites.clone()] {
+                let pair = match pairs[first_pair..].iter().position(|p| *p == [old, new]) {
+                    Some(i) => i,
+                    None => {
+                        pairs.push([old, new]);
+                        pairs.len() - 1 - first_pair
+                    }
+                };
+                let corner = 3 * slot[t as usize] + k as u32;
+                corners.push(corner << 1 | pair as u32);
+            }
+            steps.push(StepHeader {
+                corners: (c.rewrites.end - c.rewrites.start) as u16,
+                removed: c.removed_count,
+                pairs: (pairs.len() - first_pair) as u8,
+            });
+            errors.push(c.error);
+        }
+        let mut vertices = self.mesh.clone();
+        vertices.indices = indices;
+        ProgressiveMesh {
+            mesh: vertices,
+            base_triangles: base_triangles as u32,
+            steps,
+            corners,
+            pairs,
+            errors,
+        }
+    }
+}
+
+/// Runs the whole build. `mesh` must be validated.
+pub(super) fn build(
+    mesh: &IndexedMesh,
+    options: &BuildOptions,
+    pinned: Option<&[bool]>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ProgressiveMesh, MeshError> {
+    // Corner ids are packed with one flag bit into a u32.
+    if mesh.indices.len() >= (1 << 31) {
+        return Err(MeshError::parse(
+            "mesh",
+            "index buffer",
+            format!(
+                "{} triangles is more than the 715 million a progressive mesh can hold",
+                mesh.triangle_count()
+            ),
+        ));
+    }
+    let mut builder = Builder::new(mesh, options, pinned);
+    builder.run(progress);
+    Ok(builder.finish())
+}

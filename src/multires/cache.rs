@@ -1,0 +1,138 @@
+//! The polygon cache: one instance's current level of a [`ProgressiveMesh`].
+
+use super::ProgressiveMesh;
+
+/// One instance's index buffer at its current level (ASLOD's polygonal cache).
+///
+/// The cache owns a copy of the full index buffer; the active triangles are always its
+/// prefix. Moving one level rewrites the few corners that the step records (O(valence)), in
+/// either direction, with no search. The cache does not borrow the mesh, so many caches can
+/// share one [`ProgressiveMesh`] (for example behind an `Arc`); pass the same mesh to every
+/// call.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PolygonCache {
+    indices: Vec<u32>,
+    level: usize,
+    triangles: usize,
+    corner_cursor: usize,
+    pair_cursor: usize,
+    changed: bool,
+}
+
+impl PolygonCache {
+    /// A cache at full detail.
+    #[must_use]
+    pub fn new(mesh: &ProgressiveMesh) -> Self {
+        Self {
+            indices: mesh.full_indices().to_vec(),
+            level: 0,
+            triangles: mesh.max_triangles(),
+            corner_cursor: 0,
+            pair_cursor: 0,
+            changed: true,
+        }
+    }
+
+    /// The active triangles, ready to render: `3 * triangle_count()` indices into the mesh's
+    /// vertex table.
+    #[inline]
+    #[must_use]
+    pub fn indices(&self) -> &[u32] {
+        &self.indices[..3 * self.triangles]
+    }
+
+    /// Number of active triangles.
+    #[inline]
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.triangles
+    }
+
+    /// Current level: `0` is full detail, each level one collapse coarser.
+    #[inline]
+    #[must_use]
+    pub fn level(&self) -> usize {
+        self.level
+    }
+
+    /// True when the index buffer changed since the last [`clear_changed`](Self::clear_changed)
+    /// (a new cache starts changed, so it is uploaded once).
+    #[inline]
+    #[must_use]
+    pub fn is_changed(&self) -> bool {
+        self.changed
+    }
+
+    /// Marks the current index buffer as seen (uploaded).
+    #[inline]
+    pub fn clear_changed(&mut self) {
+        self.changed = false;
+    }
+
+    /// One collapse coarser. Returns false at the base level.
+    #[inline]
+    pub fn coarsen(&mut self, mesh: &ProgressiveMesh) -> bool {
+        let Some(step) = mesh.steps.get(self.level) else {
+            return false;
+        };
+        let corners = &mesh.corners[self.corner_cursor..][..step.corners as usize];
+        let pairs = &mesh.pairs[self.pair_cursor..][..step.pairs as usize];
+        for &c in corners {
+            self.indices[(c >> 1) as usize] = pairs[(c & 1) as usize][1];
+        }
+        self.corner_cursor += step.corners as usize;
+        self.pair_cursor += step.pairs as usize;
+        self.triangles -= step.removed as usize;
+        self.level += 1;
+        self.changed = true;
+        true
+    }
+
+    /// One vertex split finer. Returns false at full detail.
+    #[inline]
+    pub fn refine(&mut self, mesh: &ProgressiveMesh) -> bool {
+        if self.level == 0 {
+            return false;
+        }
+        let step = mesh.steps[self.level - 1];
+        self.corner_cursor -= step.corners as usize;
+        self.pair_cursor -= step.pairs as usize;
+        let corners = &mesh.corners[self.corner_cursor..][..step.corners as usize];
+        let pairs = &mesh.pairs[self.pair_cursor..][..step.pairs as usize];
+        for &c in corners {
+            self.indices[(c >> 1) as usize] = pairs[(c & 1) as usize][0];
+        }
+        self.triangles += step.removed as usize;
+        self.level -= 1;
+        self.changed = true;
+        true
+    }
+
+    /// Moves to the finest level with at most `triangles` triangles (never below the base
+    /// mesh) and returns the triangle count reached.
+    ///
+    /// The cost is proportional to the number of levels crossed.
+    pub fn set_triangle_count(&mut self, mesh: &ProgressiveMesh, triangles: usize) -> usize {
+        while self.triangles > triangles && self.coarsen(mesh) {}
+        while self.level > 0
+            && self.triangles + mesh.steps[self.level - 1].removed as usize <= triangles
+        {
+            self.refine(mesh);
+        }
+        self.triangles
+    }
+
+    /// Moves to `level` (clamped to the base level) and returns the triangle count reached.
+    pub fn set_level(&mut self, mesh: &ProgressiveMesh, level: usize) -> usize {
+        let level = level.min(mesh.steps.len());
+        while self.level < level && self.coarsen(mesh) {}
+        while self.level > level && self.refine(mesh) {}
+        self.triangles
+    }
+
+    /// Moves to the coarsest level whose error (relative to the bounding-box diagonal) is at
+    /// most `error`, and returns the triangle count reached.
+    pub fn set_max_error(&mut self, mesh: &ProgressiveMesh, error: f32) -> usize {
+        self.set_level(mesh, mesh.level_for_error(error))
+    }
+}

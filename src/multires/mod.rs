@@ -1,0 +1,217 @@
+//! Progressive meshes: one mesh that moves to any triangle count, cheaply and exactly.
+//!
+//! [`ProgressiveMesh::build`] runs QEM-ranked half-edge collapses (each removes one vertex by
+//! moving it onto a neighbour) from the full mesh down to a base mesh, and records them. The
+//! triangles are stored in removal order (Hoxha's MR-model; MOM's incremental sequence), so
+//! the triangles of any level are a prefix of one index buffer, and every level uses a subset
+//! of the original vertices, which is what ASLOD's shared vertex table and precomputed skin
+//! weights need (ASLOD section 5.4).
+//!
+//! A [`PolygonCache`] is one instance's view of the sequence (the paper's polygonal cache):
+//! a copy of the index buffer that [`PolygonCache::set_triangle_count`] walks back and forth,
+//! rewriting only the corners each step records, O(valence) per step with no search.
+//!
+//! ```
+//! use bevy_aslod::mesh::IndexedMesh;
+//! use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+//! use glam::Vec3;
+//!
+//! // A 4x4-vertex grid: 18 triangles.
+//! let mut positions = Vec::new();
+//! for y in 0..4 {
+//!     for x in 0..4 {
+//!         positions.push(Vec3::new(x as f32, ((x * y) % 3) as f32 * 0.1, y as f32));
+//!     }
+//! }
+//! let mut indices = Vec::new();
+//! for y in 0..3u32 {
+//!     for x in 0..3u32 {
+//!         let i = y * 4 + x;
+//!         indices.extend_from_slice(&[i, i + 4, i + 1, i + 1, i + 4, i + 5]);
+//!     }
+//! }
+//! let mesh = IndexedMesh::new(positions, indices);
+//! let pm = ProgressiveMesh::build(&mesh, &BuildOptions::default())?;
+//! let mut cache = PolygonCache::new(&pm);
+//! assert_eq!(cache.triangle_count(), 18);
+//! let reached = cache.set_triangle_count(&pm, 6);
+//! assert!(reached <= 6);
+//! assert_eq!(cache.indices().len(), 3 * reached);
+//! cache.set_triangle_count(&pm, usize::MAX);
+//! assert_eq!(cache.indices(), pm.full_indices());
+//! # Ok::<(), bevy_aslod::mesh::MeshError>(())
+//! ```
+
+mod build;
+mod cache;
+mod quadric;
+
+pub use build::BuildOptions;
+pub use cache::PolygonCache;
+
+use crate::mesh::{IndexedMesh, MeshError};
+
+/// Per-step header of the packed records.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct StepHeader {
+    /// Corner rewrites of this step.
+    pub(crate) corners: u16,
+    /// Triangles removed by this step (1 or 2).
+    pub(crate) removed: u8,
+    /// Distinct (old, new) vertex pairs of this step (1, or 2 along a seam).
+    pub(crate) pairs: u8,
+}
+
+/// A mesh that can be moved to any triangle count between its base and full detail.
+///
+/// Built once (offline, or at load on a background task) and shared by every instance;
+/// each instance keeps its own [`PolygonCache`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProgressiveMesh {
+    /// The vertex table (unchanged from the source) and the full-detail triangles in slot
+    /// order: base triangles first, then the triangles of the last collapse, ..., the first.
+    pub(crate) mesh: IndexedMesh,
+    pub(crate) base_triangles: u32,
+    pub(crate) steps: Vec<StepHeader>,
+    /// Corner index `<< 1 | pair`, per step in order.
+    pub(crate) corners: Vec<u32>,
+    /// `[old, new]` vertex pairs, per step in order.
+    pub(crate) pairs: Vec<[u32; 2]>,
+    /// `errors[i]`: the geometric error after `i + 1` collapses, relative to the bounding-box
+    /// diagonal; monotone.
+    pub(crate) errors: Vec<f32>,
+}
+
+impl ProgressiveMesh {
+    /// Builds the progressive sequence of `mesh`.
+    ///
+    /// The mesh is validated first (a copy is; the input is not changed), so degenerate
+    /// triangles are dropped and bad input is reported rather than built.
+    ///
+    /// # Errors
+    /// Any [`MeshError`] from [`IndexedMesh::validate`], and [`MeshError::Parse`] for a mesh
+    /// too large to index (over 715 million triangles).
+    pub fn build(mesh: &IndexedMesh, options: &BuildOptions) -> Result<Self, MeshError> {
+        Self::build_with(mesh, options, None, &mut |_, _| {})
+    }
+
+    /// [`build`](Self::build) with pinned vertices and a progress callback.
+    ///
+    /// `pinned[v]`, when given, keeps vertex `v` (and every vertex at its position) from being
+    /// removed or used as a collapse target: regions pin their neighbours' vertices this way.
+    /// `progress(removed, total)` is called every few thousand collapses with the triangles
+    /// removed so far.
+    ///
+    /// # Errors
+    /// As [`build`](Self::build); also [`MeshError::AttributeCountMismatch`] when `pinned`
+    /// does not have one entry per vertex.
+    pub fn build_with(
+        mesh: &IndexedMesh,
+        options: &BuildOptions,
+        pinned: Option<&[bool]>,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Self, MeshError> {
+        let mut mesh = mesh.clone();
+        mesh.validate()?;
+        if let Some(pinned) = pinned
+            && pinned.len() != mesh.vertex_count()
+        {
+            return Err(MeshError::AttributeCountMismatch {
+                attribute: "pinned",
+                expected: mesh.vertex_count(),
+                found: pinned.len(),
+            });
+        }
+        build::build(&mesh, options, pinned, progress)
+    }
+
+    /// The vertex table and the full-detail triangles (in slot order).
+    #[inline]
+    #[must_use]
+    pub fn mesh(&self) -> &IndexedMesh {
+        &self.mesh
+    }
+
+    /// The full-detail index buffer, in slot (reverse removal) order.
+    #[inline]
+    #[must_use]
+    pub fn full_indices(&self) -> &[u32] {
+        &self.mesh.indices
+    }
+
+    /// Triangles at full detail.
+    #[inline]
+    #[must_use]
+    pub fn max_triangles(&self) -> usize {
+        self.mesh.triangle_count()
+    }
+
+    /// Triangles of the base mesh, the coarsest level.
+    #[inline]
+    #[must_use]
+    pub fn min_triangles(&self) -> usize {
+        self.base_triangles as usize
+    }
+
+    /// Number of collapses; levels are numbered `0` (full detail) to `level_count() - 1`
+    /// (base mesh).
+    #[inline]
+    #[must_use]
+    pub fn level_count(&self) -> usize {
+        self.steps.len() + 1
+    }
+
+    /// Geometric error of `level` relative to the bounding-box diagonal (the simplification
+    /// table): `0` at full detail, growing monotonically towards the base mesh. Levels past
+    /// the end are clamped.
+    #[must_use]
+    pub fn level_error(&self, level: usize) -> f32 {
+        match level.min(self.steps.len()) {
+            0 => 0.0,
+            l => self.errors[l - 1],
+        }
+    }
+
+    /// Triangle count of every level, full detail first.
+    #[must_use]
+    pub fn level_triangle_counts(&self) -> Vec<usize> {
+        let mut count = self.max_triangles();
+        let mut out = Vec::with_capacity(self.level_count());
+        out.push(count);
+        for step in &self.steps {
+            count -= step.removed as usize;
+            out.push(count);
+        }
+        out
+    }
+
+    /// The coarsest level whose error is at most `error` (relative to the diagonal): the
+    /// fewest triangles that keep the error below `error`.
+    #[must_use]
+    pub fn level_for_error(&self, error: f32) -> usize {
+        // errors is monotone: count the collapses whose error stays within the bound.
+        self.errors.partition_point(|&e| e <= error)
+    }
+
+    /// Bytes of the shared data: the vertex table, the index buffer and the records.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        indexed_mesh_bytes(&self.mesh)
+            + self.steps.len() * size_of::<StepHeader>()
+            + self.corners.len() * size_of::<u32>()
+            + self.pairs.len() * size_of::<[u32; 2]>()
+            + self.errors.len() * size_of::<f32>()
+    }
+}
+
+/// Bytes of an indexed mesh's vertex attributes and index buffer.
+#[must_use]
+pub fn indexed_mesh_bytes(mesh: &IndexedMesh) -> usize {
+    let n = mesh.vertex_count();
+    n * 12
+        + mesh.normals.as_ref().map_or(0, |_| n * 12)
+        + mesh.uvs.as_ref().map_or(0, |_| n * 8)
+        + mesh.joints.as_ref().map_or(0, |_| n * 8)
+        + mesh.weights.as_ref().map_or(0, |_| n * 16)
+        + mesh.indices.len() * 4
+}

@@ -1,0 +1,375 @@
+//! The progressive mesh: exact collapse results on tiny meshes, stuck cases, and property
+//! tests over random meshes and random walks of the polygon cache.
+
+use bevy_aslod::mesh::{IndexedMesh, weld_positions};
+use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+use glam::{Vec2, Vec3};
+use proptest::prelude::*;
+use std::collections::HashMap;
+
+fn build(mesh: &IndexedMesh) -> ProgressiveMesh {
+    ProgressiveMesh::build(mesh, &BuildOptions::default()).expect("valid mesh")
+}
+
+/// Triangles as a sorted list of corner triples (corner order kept).
+fn triangle_multiset(indices: &[u32]) -> Vec<[u32; 3]> {
+    let mut tris: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    tris.sort_unstable();
+    tris
+}
+
+/// Directed edge counts over positions welded by value.
+fn welded_directed_edges(positions: &[Vec3], indices: &[u32]) -> HashMap<(u32, u32), u32> {
+    let weld = weld_positions(positions);
+    let mut edges = HashMap::new();
+    for t in indices.chunks_exact(3) {
+        for k in 0..3 {
+            let a = weld.remap[t[k] as usize];
+            let b = weld.remap[t[(k + 1) % 3] as usize];
+            *edges.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    edges
+}
+
+/// Every edge is used exactly once in each direction: closed, manifold, consistently wound.
+fn assert_closed(positions: &[Vec3], indices: &[u32], context: &str) {
+    let edges = welded_directed_edges(positions, indices);
+    for (&(a, b), &n) in &edges {
+        assert_eq!(n, 1, "{context}: edge {a}->{b} used {n} times");
+        assert_eq!(
+            edges.get(&(b, a)),
+            Some(&1),
+            "{context}: edge {a}->{b} has no opposite (a crack or a flip)"
+        );
+    }
+}
+
+fn normal(p: &[Vec3], t: &[u32]) -> Vec3 {
+    let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+    (b - a).cross(c - a)
+}
+
+/// A closed UV sphere with radial noise; `seam` splits the vertices along longitude 0 into
+/// two attribute vertices with different UVs, as a texture seam does.
+fn sphere(rings: u32, segments: u32, noise: &[f32], seam: bool) -> IndexedMesh {
+    let mut positions = vec![Vec3::Y];
+    let mut uvs = vec![Vec2::new(0.5, 0.0)];
+    let mut noise_at = noise.iter().cycle();
+    let cols = if seam { segments + 1 } else { segments };
+    for r in 1..rings {
+        let phi = std::f32::consts::PI * r as f32 / rings as f32;
+        let mut ring = Vec::new();
+        for s in 0..segments {
+            let theta = std::f32::consts::TAU * s as f32 / segments as f32;
+            let radius = 1.0 + noise_at.next().copied().unwrap_or(0.0);
+            ring.push(
+                Vec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin()) * radius,
+            );
+        }
+        for s in 0..cols {
+            positions.push(ring[(s % segments) as usize]);
+            uvs.push(Vec2::new(s as f32 / segments as f32, r as f32 / rings as f32));
+        }
+    }
+    positions.push(-Vec3::Y);
+    uvs.push(Vec2::new(0.5, 1.0));
+    let south = positions.len() as u32 - 1;
+    let at = |r: u32, s: u32| 1 + (r - 1) * cols + if seam { s } else { s % segments };
+    let mut indices = Vec::new();
+    for s in 0..segments {
+        indices.extend_from_slice(&[0, at(1, s + 1), at(1, s)]);
+        indices.extend_from_slice(&[south, at(rings - 1, s), at(rings - 1, s + 1)]);
+    }
+    for r in 1..rings - 1 {
+        for s in 0..segments {
+            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s), at(r + 1, s + 1));
+            indices.extend_from_slice(&[a, b, c, b, d, c]);
+        }
+    }
+    let mut mesh = IndexedMesh::new(positions, indices);
+    mesh.uvs = Some(uvs);
+    mesh
+}
+
+/// An open height field of `w x h` vertices.
+fn grid(w: u32, h: u32, heights: &[f32]) -> IndexedMesh {
+    let mut positions = Vec::new();
+    let mut height = heights.iter().cycle();
+    for y in 0..h {
+        for x in 0..w {
+            positions.push(Vec3::new(
+                x as f32,
+                height.next().copied().unwrap_or(0.0),
+                y as f32,
+            ));
+        }
+    }
+    let mut indices = Vec::new();
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let i = y * w + x;
+            indices.extend_from_slice(&[i, i + w, i + 1, i + 1, i + w, i + w + 1]);
+        }
+    }
+    IndexedMesh::new(positions, indices)
+}
+
+#[test]
+fn flat_square_first_collapse_is_border_midpoint_onto_its_left_neighbour() {
+    // 6---7---8      y
+    // | \ | / |      ^
+    // 3---4---5      |
+    // | / | \ |      +--> x
+    // 0---1---2
+    //
+    // Everything is coplanar, so interior and border-midpoint collapses along the border
+    // cost nothing. Ties go to the smallest vertex, then the smallest target: 1 -> 0,
+    // which removes triangle (0, 1, 4) and moves (1, 2, 4) to (0, 2, 4).
+    let positions = (0..9)
+        .map(|i| Vec3::new((i % 3) as f32, (i / 3) as f32, 0.0))
+        .collect();
+    let indices = vec![
+        0, 1, 4, 1, 2, 4, 2, 5, 4, 5, 8, 4, 8, 7, 4, 7, 6, 4, 6, 3, 4, 3, 0, 4,
+    ];
+    let mesh = IndexedMesh::new(positions, indices);
+    let pm = build(&mesh);
+    let mut cache = PolygonCache::new(&pm);
+    assert!(cache.coarsen(&pm));
+    assert_eq!(cache.triangle_count(), 7);
+    let tris = triangle_multiset(cache.indices());
+    assert!(!tris.iter().any(|t| t.contains(&1)), "vertex 1 is gone: {tris:?}");
+    assert!(tris.contains(&[0, 2, 4]), "(1,2,4) became (0,2,4): {tris:?}");
+    // The removed triangle sits right after the active prefix, corners as they were.
+    assert_eq!(&pm.full_indices()[21..24], &[0, 1, 4]);
+    // The border keeps its corners down to the last two triangles; only then does the
+    // square fold to one triangle, the base mesh.
+    cache.set_triangle_count(&pm, 2);
+    assert_eq!(cache.triangle_count(), 2);
+    for corner in [0, 2, 6, 8] {
+        assert!(cache.indices().contains(&corner), "corner {corner} was removed");
+    }
+    assert_eq!(pm.min_triangles(), 1);
+}
+
+#[test]
+fn tetrahedron_is_stuck() {
+    let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+    let indices = vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];
+    let pm = build(&IndexedMesh::new(positions, indices.clone()));
+    assert_eq!(pm.level_count(), 1, "no collapse may fold a tetrahedron");
+    assert_eq!(triangle_multiset(pm.full_indices()), triangle_multiset(&indices));
+}
+
+#[test]
+fn single_triangle_is_stuck() {
+    let pm = build(&IndexedMesh::new(
+        vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+        vec![0, 1, 2],
+    ));
+    assert_eq!(pm.min_triangles(), 1);
+    assert_eq!(pm.level_count(), 1);
+}
+
+#[test]
+fn closed_sphere_reduces_to_a_small_closed_base() {
+    let mesh = sphere(12, 16, &[0.0], false);
+    assert_closed(&mesh.positions, &mesh.indices, "input");
+    let pm = build(&mesh);
+    assert!(pm.min_triangles() <= 8, "base has {} triangles", pm.min_triangles());
+    let mut cache = PolygonCache::new(&pm);
+    while cache.coarsen(&pm) {
+        assert_closed(&mesh.positions, cache.indices(), "level");
+    }
+}
+
+#[test]
+fn uv_seam_never_tears() {
+    let mesh = sphere(10, 12, &[0.0, 0.05, -0.03], true);
+    assert!(mesh.vertex_count() > weld_positions(&mesh.positions).unique);
+    assert_closed(&mesh.positions, &mesh.indices, "input");
+    // Seam positions: the ends of every edge whose two sides use different attribute
+    // vertices in the input (the pole joins the seam without being split itself).
+    let mut seam_positions = vec![false; mesh.vertex_count()];
+    for (a, b) in attribute_discontinuities(&mesh, &mesh.indices) {
+        seam_positions[a as usize] = true;
+        seam_positions[b as usize] = true;
+    }
+    let pm = build(&mesh);
+    assert!(pm.min_triangles() < mesh.triangle_count() / 4);
+    let mut cache = PolygonCache::new(&pm);
+    while cache.coarsen(&pm) {
+        assert_closed(&mesh.positions, cache.indices(), "seamed level");
+        assert_attributes_continuous(&mesh, &seam_positions, cache.indices());
+    }
+}
+
+/// Welded edges whose two triangles use different attribute vertices at either end.
+fn attribute_discontinuities(mesh: &IndexedMesh, indices: &[u32]) -> Vec<(u32, u32)> {
+    let weld = weld_positions(&mesh.positions);
+    let mut sides: HashMap<(u32, u32), (u32, u32)> = HashMap::new();
+    let mut out = Vec::new();
+    for t in indices.chunks_exact(3) {
+        for k in 0..3 {
+            let (va, vb) = (t[k], t[(k + 1) % 3]);
+            let (a, b) = (weld.remap[va as usize], weld.remap[vb as usize]);
+            if let Some(&(wb, wa)) = sides.get(&(b, a))
+                && (wa != va || wb != vb)
+            {
+                out.push((a, b));
+            }
+            sides.insert((a, b), (va, vb));
+        }
+    }
+    out
+}
+
+/// Across every edge that is not on the original seam, both triangles use the same attribute
+/// vertices: a seam collapsed on one side only would show up here as a new discontinuity.
+fn assert_attributes_continuous(mesh: &IndexedMesh, seam: &[bool], indices: &[u32]) {
+    for (a, b) in attribute_discontinuities(mesh, indices) {
+        assert!(
+            seam[a as usize] && seam[b as usize],
+            "attribute tear across edge {a}-{b}, off the original seam"
+        );
+    }
+}
+
+#[test]
+fn open_border_keeps_its_outline() {
+    let mesh = grid(9, 9, &[0.0, 0.3, 0.1, 0.7, 0.2]);
+    let pm = build(&mesh);
+    let original: Vec<(u32, u32)> = border_edges(&mesh.positions, &mesh.indices);
+    let on_outline = |p: Vec3| p.x == 0.0 || p.x == 8.0 || p.z == 0.0 || p.z == 8.0;
+    let mut cache = PolygonCache::new(&pm);
+    while cache.coarsen(&pm) {
+        // Border vertices only ever move along the border, onto border vertices.
+        for (a, b) in border_edges(&mesh.positions, cache.indices()) {
+            let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+            assert!(on_outline(pa) && on_outline(pb), "border edge {a}-{b} left the outline");
+        }
+        // The corners carry the outline's shape: they outlive 90% of the triangles.
+        if cache.triangle_count() >= mesh.triangle_count() / 10 {
+            for corner in [0, 8, 72, 80] {
+                assert!(cache.indices().contains(&corner), "corner {corner} removed early");
+            }
+        }
+    }
+    assert!(!original.is_empty());
+}
+
+fn border_edges(positions: &[Vec3], indices: &[u32]) -> Vec<(u32, u32)> {
+    let edges = welded_directed_edges(positions, indices);
+    edges
+        .keys()
+        .filter(|&&(a, b)| !edges.contains_key(&(b, a)))
+        .copied()
+        .collect()
+}
+
+#[test]
+fn non_manifold_and_disconnected_inputs_build() {
+    // Three triangles on one edge (a fin), plus a separate quad.
+    let positions = vec![
+        Vec3::ZERO,
+        Vec3::X,
+        Vec3::Y,
+        -Vec3::Y,
+        Vec3::Z,
+        Vec3::new(5.0, 0.0, 0.0),
+        Vec3::new(6.0, 0.0, 0.0),
+        Vec3::new(6.0, 1.0, 0.0),
+        Vec3::new(5.0, 1.0, 0.0),
+    ];
+    let indices = vec![0, 1, 2, 1, 0, 3, 0, 1, 4, 5, 6, 7, 5, 7, 8];
+    let pm = build(&IndexedMesh::new(positions, indices.clone()));
+    let mut cache = PolygonCache::new(&pm);
+    cache.set_level(&pm, usize::MAX);
+    assert!(cache.triangle_count() >= 2, "both parts keep a triangle");
+    cache.set_level(&pm, 0);
+    assert_eq!(triangle_multiset(cache.indices()), triangle_multiset(&indices));
+}
+
+#[test]
+fn error_table_is_monotone_and_selects_levels() {
+    let mesh = sphere(16, 24, &[0.0, 0.02, 0.01, -0.02], false);
+    let pm = build(&mesh);
+    let mut last = 0.0;
+    for level in 0..pm.level_count() {
+        let e = pm.level_error(level);
+        assert!(e >= last, "error decreases at level {level}");
+        last = e;
+    }
+    let mut cache = PolygonCache::new(&pm);
+    let bound = pm.level_error(pm.level_count() / 2);
+    cache.set_max_error(&pm, bound);
+    assert!(pm.level_error(cache.level()) <= bound);
+    assert!(
+        cache.level() + 1 == pm.level_count() || pm.level_error(cache.level() + 1) > bound,
+        "the coarsest level within the bound"
+    );
+}
+
+/// Random closed or open meshes for the property tests.
+fn arb_mesh() -> impl Strategy<Value = (IndexedMesh, bool)> {
+    prop_oneof![
+        (4u32..10, 4u32..12, prop::collection::vec(-0.2f32..0.2, 1..40), any::<bool>())
+            .prop_map(|(r, s, noise, seam)| (sphere(r, s, &noise, seam), true)),
+        (2u32..9, 2u32..9, prop::collection::vec(-1.0f32..1.0, 1..30))
+            .prop_map(|(w, h, heights)| (grid(w, h, &heights), false)),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn cache_is_exact_after_any_walk(
+        (mesh, closed) in arb_mesh(),
+        walk in prop::collection::vec(0.0f64..=1.0, 1..12),
+    ) {
+        let pm = build(&mesh);
+        let mut cache = PolygonCache::new(&pm);
+        let counts = pm.level_triangle_counts();
+        for f in walk {
+            let target = (f * pm.max_triangles() as f64) as usize;
+            let reached = cache.set_triangle_count(&pm, target);
+            // The finest level with at most `target` triangles (or the base).
+            let expected = counts.iter().copied().find(|&c| c <= target).unwrap_or(pm.min_triangles());
+            prop_assert_eq!(reached, expected);
+            // Path independence: a fresh cache sent straight there agrees.
+            let mut fresh = PolygonCache::new(&pm);
+            fresh.set_level(&pm, cache.level());
+            prop_assert_eq!(fresh.indices(), cache.indices());
+            if closed {
+                assert_closed(&mesh.positions, cache.indices(), "walk");
+            }
+        }
+        cache.set_triangle_count(&pm, usize::MAX);
+        prop_assert_eq!(cache.indices(), pm.full_indices());
+        prop_assert_eq!(triangle_multiset(cache.indices()), triangle_multiset(&mesh.indices));
+    }
+
+    #[test]
+    fn every_level_is_closed_and_no_collapse_flips_a_face((mesh, closed) in arb_mesh()) {
+        let pm = build(&mesh);
+        let mut cache = PolygonCache::new(&pm);
+        loop {
+            let before = cache.indices().to_vec();
+            if !cache.coarsen(&pm) {
+                break;
+            }
+            let after = cache.indices();
+            for (slot, t) in after.chunks_exact(3).enumerate() {
+                let old = &before[3 * slot..3 * slot + 3];
+                if old != t {
+                    let (n0, n1) = (normal(&mesh.positions, old), normal(&mesh.positions, t));
+                    prop_assert!(n0.dot(n1) > 0.0, "slot {} flipped: {:?} -> {:?}", slot, old, t);
+                }
+            }
+            if closed {
+                assert_closed(&mesh.positions, after, "level");
+            }
+        }
+    }
+}
