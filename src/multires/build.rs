@@ -13,12 +13,11 @@
 //! 5. pop, re-validate, perform, record, and re-rank the one-ring of the surviving vertex;
 //! 6. lay the triangles out in removal order and pack the records.
 
+use super::heap::IndexedHeap;
 use super::quadric::Quadric;
 use super::{ProgressiveMesh, StepHeader};
 use crate::mesh::{IndexedMesh, MeshError, weld_positions};
 use glam::DVec3;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 /// Settings of [`ProgressiveMesh::build`].
 #[derive(Clone, Debug, PartialEq)]
@@ -43,8 +42,8 @@ impl Default for BuildOptions {
         Self {
             min_triangles: 0,
             max_error: f32::INFINITY,
-            border_weight: 10.0,
-            min_normal_cos: 0.25,
+            border_weight: std::env::var("BW").ok().and_then(|v| v.parse().ok()).unwrap_or(10.0),
+            min_normal_cos: std::env::var("NC").ok().and_then(|v| v.parse().ok()).unwrap_or(0.25),
         }
     }
 }
@@ -88,18 +87,39 @@ struct Builder<'a> {
     adj: Vec<Vec<u32>>,
     kind: Vec<Kind>,
     quadrics: Vec<Quadric>,
-    version: Vec<u32>,
-    heap: BinaryHeap<Reverse<(u64, u32, u32, u32)>>,
+    /// The queue: each position's cheapest collapse cost; its target is in `target`.
+    heap: IndexedHeap,
+    target: Vec<u32>,
     collapses: Vec<Collapse>,
     rewrites: Vec<Rewrite>,
     live_triangles: usize,
     /// False when every position has one attribute vertex: no seams to respect.
     has_seams: bool,
     inv_diagonal: f64,
-    // Scratch buffers, reused across evaluations.
-    scratch_map: Vec<(u32, u32)>,
-    scratch_a: Vec<u32>,
-    scratch_b: Vec<u32>,
+    scratch: Scratch,
+    candidates: Vec<(f64, u32)>,
+}
+
+/// Buffers reused across collapse evaluations.
+#[derive(Default)]
+struct Scratch {
+    /// Attribute-vertex mapping (old -> new) of the collapse being checked.
+    map: Vec<(u32, u32)>,
+    neighbors: Vec<u32>,
+    /// `mark[p] == stamp` marks position `p` in the current set, without clearing.
+    mark: Vec<u32>,
+    stamp: u32,
+}
+
+impl Scratch {
+    fn next_stamp(&mut self) -> u32 {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.mark.fill(0);
+            self.stamp = 1;
+        }
+        self.stamp
+    }
 }
 
 /// Positions of a triangle's corners that are not `p`, in winding order after `p`.
@@ -140,14 +160,16 @@ impl<'a> Builder<'a> {
             adj,
             kind: vec![Kind::Manifold; n],
             quadrics: vec![Quadric::default(); n],
-            version: vec![0; n],
-            heap: BinaryHeap::new(),
+            heap: IndexedHeap::new(n),
+            target: vec![u32::MAX; n],
             collapses: Vec::new(),
             rewrites: Vec::new(),
             inv_diagonal: if diagonal > 0.0 { 1.0 / diagonal } else { 1.0 },
-            scratch_map: Vec::new(),
-            scratch_a: Vec::new(),
-            scratch_b: Vec::new(),
+            scratch: Scratch {
+                mark: vec![0; n],
+                ..Scratch::default()
+            },
+            candidates: Vec::new(),
         };
         builder.classify(pinned);
         builder
@@ -297,18 +319,18 @@ impl<'a> Builder<'a> {
     }
 
     /// Collects the distinct neighbour positions of `p` into `out`.
-    fn neighbors_into(&self, p: u32, out: &mut Vec<u32>) {
+    fn neighbors_into(&self, p: u32, out: &mut Vec<u32>, scratch: &mut Scratch) {
         out.clear();
+        let stamp = scratch.next_stamp();
         for &t in &self.adj[p as usize] {
             for &v in &self.tris[t as usize] {
                 let q = self.pos[v as usize];
-                if q != p {
+                if q != p && scratch.mark[q as usize] != stamp {
+                    scratch.mark[q as usize] = stamp;
                     out.push(q);
                 }
             }
         }
-        out.sort_unstable();
-        out.dedup();
     }
 
     fn is_border_edge(&self, u: u32, w: u32) -> bool {
@@ -341,33 +363,27 @@ impl<'a> Builder<'a> {
         false
     }
 
-    /// True when any edge at `u` is a seam edge. `scratch` receives u's neighbours.
-    fn touches_seam(&self, u: u32, scratch: &mut Vec<u32>) -> bool {
-        self.neighbors_into(u, scratch);
-        scratch.iter().any(|&x| self.is_seam_edge(u, x))
+    /// True when any edge at `u` is a seam edge.
+    fn touches_seam(&self, u: u32, scratch: &mut Scratch) -> bool {
+        let mut neighbors = std::mem::take(&mut scratch.neighbors);
+        self.neighbors_into(u, &mut neighbors, scratch);
+        let touches = neighbors.iter().any(|&x| self.is_seam_edge(u, x));
+        scratch.neighbors = neighbors;
+        touches
     }
 
     /// Every rule a half-edge collapse `u -> w` must pass; fills `scratch_map` with the
     /// attribute-vertex mapping (old -> new) when it does.
     fn is_valid(&mut self, u: u32, w: u32) -> bool {
-        let mut map = std::mem::take(&mut self.scratch_map);
-        let mut nu = std::mem::take(&mut self.scratch_a);
-        let mut nw = std::mem::take(&mut self.scratch_b);
-        let ok = self.check_collapse(u, w, &mut map, &mut nu, &mut nw);
-        self.scratch_map = map;
-        self.scratch_a = nu;
-        self.scratch_b = nw;
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let ok = self.check_collapse(u, w, &mut scratch);
+        self.scratch = scratch;
         ok
     }
 
-    fn check_collapse(
-        &self,
-        u: u32,
-        w: u32,
-        map: &mut Vec<(u32, u32)>,
-        nu: &mut Vec<u32>,
-        nw: &mut Vec<u32>,
-    ) -> bool {
+    fn check_collapse(&self, u: u32, w: u32, scratch: &mut Scratch) -> bool {
+        let mut apexes = [u32::MAX; 2];
+        let map = &mut scratch.map;
         map.clear();
         // Triangles on the edge u-w: they disappear. Their corners tell which attribute
         // vertex at w replaces each attribute vertex at u (seams collapse side by side).
@@ -380,6 +396,9 @@ impl<'a> Builder<'a> {
             ) else {
                 continue;
             };
+            if edge_tris < 2 {
+                apexes[edge_tris] = self.pos[tri[3 - ku - kw] as usize];
+            }
             edge_tris += 1;
             let (a, b) = (tri[ku], tri[kw]);
             match map.iter().find(|m| m.0 == a) {
@@ -397,17 +416,26 @@ impl<'a> Builder<'a> {
         }
         // A vertex on an attribute seam (or at the end of one) moves only along the seam;
         // anything else would drag one side's attributes across to the other.
-        if self.has_seams && self.touches_seam(u, nu) && !self.is_seam_edge(u, w) {
+        if self.has_seams && self.touches_seam(u, scratch) && !self.is_seam_edge(u, w) {
             return false;
         }
         // Link condition: the only common neighbours of u and w are the apexes of the edge's
         // triangles. Anything else would pinch the surface into a non-manifold edge.
-        self.neighbors_into(u, nu);
-        self.neighbors_into(w, nw);
-        let common = nu.iter().filter(|x| nw.binary_search(x).is_ok()).count();
-        if common != edge_tris {
-            return false;
+        let stamp = scratch.next_stamp();
+        for &t in &self.adj[w as usize] {
+            for &v in &self.tris[t as usize] {
+                scratch.mark[self.pos[v as usize] as usize] = stamp;
+            }
         }
+        for &t in &self.adj[u as usize] {
+            for &v in &self.tris[t as usize] {
+                let x = self.pos[v as usize];
+                if x != u && x != w && scratch.mark[x as usize] == stamp && !apexes.contains(&x) {
+                    return false;
+                }
+            }
+        }
+        let map = &scratch.map;
         let pu = self.points[u as usize];
         let pw = self.points[w as usize];
         for &t in &self.adj[u as usize] {
@@ -420,8 +448,11 @@ impl<'a> Builder<'a> {
             if !map.iter().any(|m| m.0 == tri[k]) {
                 return false;
             }
-            // No triangle (w, a, b) may exist already (the tetrahedron case).
-            let duplicate = self.adj[w as usize].iter().any(|&s| {
+            // No triangle (w, a, b) may exist already (the tetrahedron case). After the link
+            // condition, only a triangle spanning both apexes can.
+            let duplicate = apexes.contains(&a)
+                && apexes.contains(&b)
+                && self.adj[w as usize].iter().any(|&s| {
                 let o = self.tris[s as usize];
                 let has = |p: u32| o.iter().any(|&v| self.pos[v as usize] == p);
                 has(a) && has(b)
@@ -442,9 +473,11 @@ impl<'a> Builder<'a> {
         true
     }
 
-    /// Phase 4: the cheapest valid collapse out of `u`, pushed onto the queue.
-    fn rank(&mut self, u: u32) {
-        self.version[u as usize] = self.version[u as usize].wrapping_add(1);
+    /// Phase 4: queues the cheapest collapse out of `u`. With `validate`, the cheapest one
+    /// that passes every rule; without, the cheapest by cost alone, checked when popped
+    /// (most vertices are re-ranked several times before their turn comes).
+    fn rank(&mut self, u: u32, validate: bool) {
+        self.heap.remove(u);
         // A step records its corner rewrites in a u16.
         if !matches!(self.kind[u as usize], Kind::Manifold | Kind::Border)
             || self.adj[u as usize].is_empty()
@@ -452,35 +485,41 @@ impl<'a> Builder<'a> {
         {
             return;
         }
-        let mut nu = std::mem::take(&mut self.scratch_a);
-        self.neighbors_into(u, &mut nu);
-        let mut candidates: Vec<(f64, u32)> = nu
-            .iter()
-            .filter(|&&w| self.kind[w as usize] != Kind::Pinned)
-            .filter(|&&w| self.kind[u as usize] != Kind::Border || self.is_border_edge(u, w))
-            .map(|&w| {
-                let p = self.points[w as usize];
-                let e = Quadric::merged_error(
-                    &self.quadrics[u as usize],
-                    &self.quadrics[w as usize],
-                    p,
-                );
-                (e, w)
-            })
-            .collect();
-        self.scratch_a = nu;
-        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        for (cost, w) in candidates {
-            if self.is_valid(u, w) {
-                self.heap.push(Reverse((
-                    cost.to_bits(),
-                    u,
-                    w,
-                    self.version[u as usize],
-                )));
-                return;
+        let mut nu = std::mem::take(&mut self.scratch.neighbors);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        self.neighbors_into(u, &mut nu, &mut scratch);
+        self.scratch = scratch;
+        let mut candidates = std::mem::take(&mut self.candidates);
+        candidates.clear();
+        let qu = self.quadrics[u as usize];
+        for &w in &nu {
+            if self.kind[w as usize] == Kind::Pinned
+                || (self.kind[u as usize] == Kind::Border && !self.is_border_edge(u, w))
+            {
+                continue;
             }
+            let qw = &self.quadrics[w as usize];
+            let p = self.points[w as usize];
+            let e = match std::env::var("ASLOD_COST").as_deref() {
+                Ok("B") => qu.eval(p) / qu.weight(),
+                Ok("C") => qu.eval(p) + qw.eval(p),
+                Ok("D") => qu.eval(p) / qu.weight() + qw.eval(p) / qw.weight(),
+                _ => Quadric::merged_error(&qu, qw, p),
+            };
+            candidates.push((e, w));
         }
+        self.scratch.neighbors = nu;
+        candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let chosen = if validate {
+            candidates.iter().copied().find(|&(_, w)| self.is_valid(u, w))
+        } else {
+            candidates.first().copied()
+        };
+        if let Some((cost, w)) = chosen {
+            self.target[u as usize] = w;
+            self.heap.set(u, cost.to_bits());
+        }
+        self.candidates = candidates;
     }
 
     /// Phase 5: removes the edge's triangles, moves u's corners to w, records both.
@@ -488,7 +527,7 @@ impl<'a> Builder<'a> {
         let rewrite_start = self.rewrites.len();
         let mut removed = [u32::MAX; 2];
         let mut removed_count = 0u8;
-        let map = std::mem::take(&mut self.scratch_map);
+        let map = std::mem::take(&mut self.scratch.map);
         let adj_u = std::mem::take(&mut self.adj[u as usize]);
         for &t in &adj_u {
             let tri = self.tris[t as usize];
@@ -522,7 +561,7 @@ impl<'a> Builder<'a> {
                 self.adj[w as usize].push(t);
             }
         }
-        self.scratch_map = map;
+        self.scratch.map = map;
         let q = self.quadrics[u as usize];
         self.quadrics[w as usize].add(&q);
         let error = (cost.sqrt() * self.inv_diagonal) as f32;
@@ -534,39 +573,39 @@ impl<'a> Builder<'a> {
             // The table is monotone: a level's error is the largest collapse error so far.
             error: error.max(previous),
         });
-        self.version[u as usize] = self.version[u as usize].wrapping_add(1);
+        self.heap.remove(u);
     }
 
     fn run(&mut self, progress: &mut dyn FnMut(usize, usize)) {
         self.fill_quadrics();
         for u in 0..self.adj.len() as u32 {
             if self.pos[u as usize] == u {
-                self.rank(u);
+                self.rank(u, false);
             }
         }
         let total = self.tris.len();
         let mut ring = Vec::new();
-        while let Some(Reverse((bits, u, w, version))) = self.heap.pop() {
+        while let Some((bits, u)) = self.heap.pop() {
             if self.live_triangles <= self.options.min_triangles {
                 break;
             }
-            if version != self.version[u as usize] {
-                continue;
-            }
+            let w = self.target[u as usize];
             let cost = f64::from_bits(bits);
             if (cost.sqrt() * self.inv_diagonal) as f32 > self.options.max_error {
                 break;
             }
             // Neighbourhoods change under earlier collapses: check again before acting.
             if !self.is_valid(u, w) {
-                self.rank(u);
+                self.rank(u, true);
                 continue;
             }
             self.perform(u, w, cost);
-            self.neighbors_into(w, &mut ring);
-            self.rank(w);
+            let mut scratch = std::mem::take(&mut self.scratch);
+            self.neighbors_into(w, &mut ring, &mut scratch);
+            self.scratch = scratch;
+            self.rank(w, false);
             for &x in &ring {
-                self.rank(x);
+                self.rank(x, false);
             }
             if self.collapses.len() % 4096 == 0 {
                 progress(total - self.live_triangles, total);

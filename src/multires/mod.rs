@@ -44,6 +44,7 @@
 
 mod build;
 mod cache;
+mod heap;
 mod quadric;
 
 pub use build::BuildOptions;

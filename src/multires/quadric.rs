@@ -68,6 +68,8 @@ impl Quadric {
         r.max(0.0)
     }
 
+    pub(crate) fn weight(&self) -> f64 { self.weight.max(1e-300) }
+
     /// Mean squared distance of `p` to the planes of `a + b`.
     #[inline]
     pub(crate) fn merged_error(a: &Self, b: &Self, p: DVec3) -> f64 {

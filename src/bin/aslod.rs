@@ -1,0 +1,344 @@
+//! `aslod`: build, inspect and compare progressive meshes from the command line.
+
+use bevy_aslod::distance::{Distance, DistanceOptions, MeshRef, mesh_distance};
+use bevy_aslod::mesh::{IndexedMesh, write_obj};
+use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh, indexed_mesh_bytes};
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::{BufWriter, IsTerminal};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "aslod", version, about = "Progressive meshes for bevy_aslod")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write the level with at most N triangles (or the coarsest within an error) as OBJ.
+    Extract {
+        /// Input mesh (.obj, .ply, .gltf, .glb).
+        input: PathBuf,
+        /// Triangle count to reach (at most).
+        #[arg(long, conflicts_with = "error", required_unless_present = "error")]
+        triangles: Option<usize>,
+        /// Error bound, relative to the bounding-box diagonal.
+        #[arg(long)]
+        error: Option<f32>,
+        /// Output OBJ file.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Compare our progressive mesh with meshoptimizer: build time and error per ratio.
+    Compare {
+        /// Input mesh (.obj, .ply, .gltf, .glb).
+        input: PathBuf,
+        /// Triangle ratios to compare at.
+        #[arg(long, value_delimiter = ',', default_value = "0.5,0.1,0.02")]
+        ratios: Vec<f64>,
+        /// Timing runs per method; the median is reported.
+        #[arg(long, default_value_t = 5)]
+        runs: usize,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Print a mesh's counts, its progressive sequence and its memory use.
+    Info {
+        /// Input mesh (.obj, .ply, .gltf, .glb).
+        input: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Extract {
+            input,
+            triangles,
+            error,
+            output,
+        } => extract(&input, triangles, error, &output),
+        Command::Compare {
+            input,
+            ratios,
+            runs,
+            json,
+        } => compare(&input, &ratios, runs.max(1), json),
+        Command::Info { input } => info(&input),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+type CliResult = Result<(), Box<dyn std::error::Error>>;
+
+fn load(input: &Path) -> Result<IndexedMesh, Box<dyn std::error::Error>> {
+    let (mesh, report) = IndexedMesh::load(input)?;
+    if report.degenerate_triangles_dropped > 0 {
+        eprintln!(
+            "note: dropped {} degenerate triangles",
+            report.degenerate_triangles_dropped
+        );
+    }
+    Ok(mesh)
+}
+
+/// Builds with a progress bar when stderr is a terminal.
+fn build(mesh: &IndexedMesh) -> Result<ProgressiveMesh, Box<dyn std::error::Error>> {
+    let bar = if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(mesh.triangle_count() as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} triangles removed")?
+                .progress_chars("=> "),
+        );
+        bar.set_message("building");
+        Some(bar)
+    } else {
+        None
+    };
+    let pm =
+        ProgressiveMesh::build_with(mesh, &BuildOptions::default(), None, &mut |done, _| {
+            if let Some(bar) = &bar {
+                bar.set_position(done as u64);
+            }
+        })?;
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    Ok(pm)
+}
+
+fn extract(input: &Path, triangles: Option<usize>, error: Option<f32>, output: &Path) -> CliResult {
+    let mesh = load(input)?;
+    let pm = build(&mesh)?;
+    let mut cache = PolygonCache::new(&pm);
+    let reached = match (triangles, error) {
+        (Some(n), _) => cache.set_triangle_count(&pm, n),
+        (None, Some(e)) => cache.set_max_error(&pm, e),
+        (None, None) => unreachable!("clap requires one of them"),
+    };
+    let mut out = pm.mesh().clone();
+    out.indices = cache.indices().to_vec();
+    let file = std::fs::File::create(output)?;
+    write_obj(&out, &mut BufWriter::new(file))?;
+    eprintln!(
+        "wrote {} triangles (level {}, error {:.6} of the diagonal) to {}",
+        reached,
+        cache.level(),
+        pm.level_error(cache.level()),
+        output.display()
+    );
+    Ok(())
+}
+
+fn info(input: &Path) -> CliResult {
+    let mesh = load(input)?;
+    let start = Instant::now();
+    let pm = build(&mesh)?;
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let source = indexed_mesh_bytes(&mesh);
+    let ours = pm.memory_bytes();
+    println!("{}", input.display());
+    println!(
+        "  triangles {} / vertices {}",
+        mesh.triangle_count(),
+        mesh.vertex_count()
+    );
+    println!(
+        "  levels {} (base mesh {} triangles, base error {:.5} of the diagonal)",
+        pm.level_count(),
+        pm.min_triangles(),
+        pm.level_error(pm.level_count() - 1)
+    );
+    println!("  build {build_ms:.1} ms");
+    let t = mesh.triangle_count() as f64;
+    println!(
+        "  memory {} bytes = {:.1} bytes/triangle ({:.2}x the indexed mesh: {:.1} bytes/triangle)",
+        ours,
+        ours as f64 / t,
+        ours as f64 / source as f64,
+        source as f64 / t
+    );
+    Ok(())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time_ms<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut times = Vec::with_capacity(runs);
+    let mut last = None;
+    for _ in 0..runs {
+        let start = Instant::now();
+        last = Some(f());
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    (median(times), last.expect("runs >= 1"))
+}
+
+fn meshopt_simplify(mesh: &IndexedMesh, target_triangles: usize) -> Vec<u32> {
+    let bytes: Vec<u8> = mesh
+        .positions
+        .iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let adapter =
+        meshopt::VertexDataAdapter::new(&bytes, 12, 0).expect("12-byte stride divides the data");
+    meshopt::simplify(
+        &mesh.indices,
+        &adapter,
+        3 * target_triangles,
+        f32::MAX,
+        meshopt::SimplifyOptions::None,
+        None,
+    )
+}
+
+struct Row {
+    ratio: f64,
+    target: usize,
+    ours_triangles: usize,
+    ours: Distance,
+    meshopt_triangles: usize,
+    meshopt: Distance,
+}
+
+fn compare(input: &Path, ratios: &[f64], runs: usize, json: bool) -> CliResult {
+    let mesh = load(input)?;
+    let t = mesh.triangle_count();
+    let smallest = ratios.iter().copied().fold(1.0f64, f64::min);
+    let target_of = |r: f64| ((r * t as f64).round() as usize).max(1);
+
+    let (ours_ms, pm) = time_ms(runs, || {
+        ProgressiveMesh::build(&mesh, &BuildOptions::default())
+    });
+    let pm = pm?;
+    let (meshopt_smallest_ms, _) = time_ms(runs, || meshopt_simplify(&mesh, target_of(smallest)));
+    let (meshopt_1pc_ms, _) = time_ms(runs, || meshopt_simplify(&mesh, target_of(0.01)));
+
+    let options = DistanceOptions::default();
+    let original = MeshRef::new(&mesh.positions, &mesh.indices);
+    let mut cache = PolygonCache::new(&pm);
+    let mut rows = Vec::new();
+    for &ratio in ratios {
+        let target = target_of(ratio);
+        let ours_triangles = cache.set_triangle_count(&pm, target);
+        let ours = mesh_distance(
+            original,
+            MeshRef::new(&pm.mesh().positions, cache.indices()),
+            &options,
+        );
+        let simplified = meshopt_simplify(&mesh, target);
+        let meshopt = mesh_distance(
+            original,
+            MeshRef::new(&mesh.positions, &simplified),
+            &options,
+        );
+        rows.push(Row {
+            ratio,
+            target,
+            ours_triangles,
+            ours,
+            meshopt_triangles: simplified.len() / 3,
+            meshopt,
+        });
+    }
+    let source_bytes = indexed_mesh_bytes(&mesh);
+    let ours_bytes = pm.memory_bytes();
+
+    if json {
+        let value = serde_json::json!({
+            "input": input.display().to_string(),
+            "triangles": t,
+            "vertices": mesh.vertex_count(),
+            "runs": runs,
+            "build_ms": {
+                "ours_full_sequence": ours_ms,
+                "meshopt_smallest_ratio": meshopt_smallest_ms,
+                "meshopt_1_percent": meshopt_1pc_ms,
+                "ours_over_meshopt_1_percent": ours_ms / meshopt_1pc_ms,
+            },
+            "memory": {
+                "indexed_mesh_bytes": source_bytes,
+                "progressive_mesh_bytes": ours_bytes,
+                "bytes_per_triangle": ours_bytes as f64 / t as f64,
+                "ratio": ours_bytes as f64 / source_bytes as f64,
+            },
+            "ratios": rows.iter().map(|r| serde_json::json!({
+                "ratio": r.ratio,
+                "target": r.target,
+                "ours": {"triangles": r.ours_triangles, "hausdorff": r.ours.hausdorff, "rms": r.ours.rms},
+                "meshopt": {"triangles": r.meshopt_triangles, "hausdorff": r.meshopt.hausdorff, "rms": r.meshopt.rms},
+                "hausdorff_ratio": r.ours.hausdorff / r.meshopt.hausdorff,
+                "rms_ratio": r.ours.rms / r.meshopt.rms,
+            })).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&value)?);
+        return Ok(());
+    }
+
+    println!(
+        "{}: {} triangles, {} vertices (median of {} runs)",
+        input.display(),
+        t,
+        mesh.vertex_count(),
+        runs
+    );
+    println!(
+        "build: ours (all {} levels) {:.1} ms | meshopt to {:.0}% {:.1} ms | meshopt to 1% {:.1} ms | ours / meshopt 1% = {:.2}x",
+        pm.level_count(),
+        ours_ms,
+        smallest * 100.0,
+        meshopt_smallest_ms,
+        meshopt_1pc_ms,
+        ours_ms / meshopt_1pc_ms
+    );
+    println!(
+        "memory: {:.1} bytes/triangle, {:.2}x the indexed mesh ({:.1} bytes/triangle)",
+        ours_bytes as f64 / t as f64,
+        ours_bytes as f64 / source_bytes as f64,
+        source_bytes as f64 / t as f64
+    );
+    println!(
+        "{:>6} {:>8} | {:>8} {:>10} {:>10} | {:>8} {:>10} {:>10} | {:>7} {:>7}",
+        "ratio",
+        "target",
+        "ours",
+        "hausdorff",
+        "rms",
+        "meshopt",
+        "hausdorff",
+        "rms",
+        "H ratio",
+        "RMS rat"
+    );
+    for r in &rows {
+        println!(
+            "{:>6} {:>8} | {:>8} {:>10.6} {:>10.6} | {:>8} {:>10.6} {:>10.6} | {:>7.3} {:>7.3}",
+            r.ratio,
+            r.target,
+            r.ours_triangles,
+            r.ours.hausdorff,
+            r.ours.rms,
+            r.meshopt_triangles,
+            r.meshopt.hausdorff,
+            r.meshopt.rms,
+            r.ours.hausdorff / r.meshopt.hausdorff,
+            r.ours.rms / r.meshopt.rms
+        );
+    }
+    Ok(())
+}
