@@ -5,6 +5,7 @@ pub mod budget;
 pub mod distance;
 pub mod mesh;
 pub mod multires;
+pub mod regions;
 
 /// The types most users need.
 pub mod prelude {

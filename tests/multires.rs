@@ -1,118 +1,17 @@
 //! The progressive mesh: exact collapse results on tiny meshes, stuck cases, and property
 //! tests over random meshes and random walks of the polygon cache.
 
+mod common;
+
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
-use glam::{Vec2, Vec3};
+use common::*;
+use glam::Vec3;
 use proptest::prelude::*;
 use std::collections::HashMap;
 
 fn build(mesh: &IndexedMesh) -> ProgressiveMesh {
     ProgressiveMesh::build(mesh, &BuildOptions::default()).expect("valid mesh")
-}
-
-/// Triangles as a sorted list of corner triples (corner order kept).
-fn triangle_multiset(indices: &[u32]) -> Vec<[u32; 3]> {
-    let mut tris: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-    tris.sort_unstable();
-    tris
-}
-
-/// Directed edge counts over positions welded by value.
-fn welded_directed_edges(positions: &[Vec3], indices: &[u32]) -> HashMap<(u32, u32), u32> {
-    let weld = weld_positions(positions);
-    let mut edges = HashMap::new();
-    for t in indices.chunks_exact(3) {
-        for k in 0..3 {
-            let a = weld.remap[t[k] as usize];
-            let b = weld.remap[t[(k + 1) % 3] as usize];
-            *edges.entry((a, b)).or_insert(0) += 1;
-        }
-    }
-    edges
-}
-
-/// Every edge is used exactly once in each direction: closed, manifold, consistently wound.
-fn assert_closed(positions: &[Vec3], indices: &[u32], context: &str) {
-    let edges = welded_directed_edges(positions, indices);
-    for (&(a, b), &n) in &edges {
-        assert_eq!(n, 1, "{context}: edge {a}->{b} used {n} times");
-        assert_eq!(
-            edges.get(&(b, a)),
-            Some(&1),
-            "{context}: edge {a}->{b} has no opposite (a crack or a flip)"
-        );
-    }
-}
-
-fn normal(p: &[Vec3], t: &[u32]) -> Vec3 {
-    let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
-    (b - a).cross(c - a)
-}
-
-/// A closed UV sphere with radial noise; `seam` splits the vertices along longitude 0 into
-/// two attribute vertices with different UVs, as a texture seam does.
-fn sphere(rings: u32, segments: u32, noise: &[f32], seam: bool) -> IndexedMesh {
-    let mut positions = vec![Vec3::Y];
-    let mut uvs = vec![Vec2::new(0.5, 0.0)];
-    let mut noise_at = noise.iter().cycle();
-    let cols = if seam { segments + 1 } else { segments };
-    for r in 1..rings {
-        let phi = std::f32::consts::PI * r as f32 / rings as f32;
-        let mut ring = Vec::new();
-        for s in 0..segments {
-            let theta = std::f32::consts::TAU * s as f32 / segments as f32;
-            let radius = 1.0 + noise_at.next().copied().unwrap_or(0.0);
-            ring.push(
-                Vec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin()) * radius,
-            );
-        }
-        for s in 0..cols {
-            positions.push(ring[(s % segments) as usize]);
-            uvs.push(Vec2::new(s as f32 / segments as f32, r as f32 / rings as f32));
-        }
-    }
-    positions.push(-Vec3::Y);
-    uvs.push(Vec2::new(0.5, 1.0));
-    let south = positions.len() as u32 - 1;
-    let at = |r: u32, s: u32| 1 + (r - 1) * cols + if seam { s } else { s % segments };
-    let mut indices = Vec::new();
-    for s in 0..segments {
-        indices.extend_from_slice(&[0, at(1, s + 1), at(1, s)]);
-        indices.extend_from_slice(&[south, at(rings - 1, s), at(rings - 1, s + 1)]);
-    }
-    for r in 1..rings - 1 {
-        for s in 0..segments {
-            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s), at(r + 1, s + 1));
-            indices.extend_from_slice(&[a, b, c, b, d, c]);
-        }
-    }
-    let mut mesh = IndexedMesh::new(positions, indices);
-    mesh.uvs = Some(uvs);
-    mesh
-}
-
-/// An open height field of `w x h` vertices.
-fn grid(w: u32, h: u32, heights: &[f32]) -> IndexedMesh {
-    let mut positions = Vec::new();
-    let mut height = heights.iter().cycle();
-    for y in 0..h {
-        for x in 0..w {
-            positions.push(Vec3::new(
-                x as f32,
-                height.next().copied().unwrap_or(0.0),
-                y as f32,
-            ));
-        }
-    }
-    let mut indices = Vec::new();
-    for y in 0..h - 1 {
-        for x in 0..w - 1 {
-            let i = y * w + x;
-            indices.extend_from_slice(&[i, i + w, i + 1, i + 1, i + w, i + w + 1]);
-        }
-    }
-    IndexedMesh::new(positions, indices)
 }
 
 #[test]
@@ -138,8 +37,14 @@ fn flat_square_first_collapse_is_border_midpoint_onto_its_left_neighbour() {
     assert!(cache.coarsen(&pm));
     assert_eq!(cache.triangle_count(), 7);
     let tris = triangle_multiset(cache.indices());
-    assert!(!tris.iter().any(|t| t.contains(&1)), "vertex 1 is gone: {tris:?}");
-    assert!(tris.contains(&[0, 2, 4]), "(1,2,4) became (0,2,4): {tris:?}");
+    assert!(
+        !tris.iter().any(|t| t.contains(&1)),
+        "vertex 1 is gone: {tris:?}"
+    );
+    assert!(
+        tris.contains(&[0, 2, 4]),
+        "(1,2,4) became (0,2,4): {tris:?}"
+    );
     // The removed triangle sits right after the active prefix, corners as they were.
     assert_eq!(&pm.full_indices()[21..24], &[0, 1, 4]);
     // The border keeps its corners down to the last two triangles; only then does the
@@ -147,7 +52,10 @@ fn flat_square_first_collapse_is_border_midpoint_onto_its_left_neighbour() {
     cache.set_triangle_count(&pm, 2);
     assert_eq!(cache.triangle_count(), 2);
     for corner in [0, 2, 6, 8] {
-        assert!(cache.indices().contains(&corner), "corner {corner} was removed");
+        assert!(
+            cache.indices().contains(&corner),
+            "corner {corner} was removed"
+        );
     }
     assert_eq!(pm.min_triangles(), 1);
 }
@@ -158,7 +66,10 @@ fn tetrahedron_is_stuck() {
     let indices = vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];
     let pm = build(&IndexedMesh::new(positions, indices.clone()));
     assert_eq!(pm.level_count(), 1, "no collapse may fold a tetrahedron");
-    assert_eq!(triangle_multiset(pm.full_indices()), triangle_multiset(&indices));
+    assert_eq!(
+        triangle_multiset(pm.full_indices()),
+        triangle_multiset(&indices)
+    );
 }
 
 #[test]
@@ -176,7 +87,11 @@ fn closed_sphere_reduces_to_a_small_closed_base() {
     let mesh = sphere(12, 16, &[0.0], false);
     assert_closed(&mesh.positions, &mesh.indices, "input");
     let pm = build(&mesh);
-    assert!(pm.min_triangles() <= 8, "base has {} triangles", pm.min_triangles());
+    assert!(
+        pm.min_triangles() <= 8,
+        "base has {} triangles",
+        pm.min_triangles()
+    );
     let mut cache = PolygonCache::new(&pm);
     while cache.coarsen(&pm) {
         assert_closed(&mesh.positions, cache.indices(), "level");
@@ -246,25 +161,22 @@ fn open_border_keeps_its_outline() {
         // Border vertices only ever move along the border, onto border vertices.
         for (a, b) in border_edges(&mesh.positions, cache.indices()) {
             let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
-            assert!(on_outline(pa) && on_outline(pb), "border edge {a}-{b} left the outline");
+            assert!(
+                on_outline(pa) && on_outline(pb),
+                "border edge {a}-{b} left the outline"
+            );
         }
         // The corners carry the outline's shape: they outlive 90% of the triangles.
         if cache.triangle_count() >= mesh.triangle_count() / 10 {
             for corner in [0, 8, 72, 80] {
-                assert!(cache.indices().contains(&corner), "corner {corner} removed early");
+                assert!(
+                    cache.indices().contains(&corner),
+                    "corner {corner} removed early"
+                );
             }
         }
     }
     assert!(!original.is_empty());
-}
-
-fn border_edges(positions: &[Vec3], indices: &[u32]) -> Vec<(u32, u32)> {
-    let edges = welded_directed_edges(positions, indices);
-    edges
-        .keys()
-        .filter(|&&(a, b)| !edges.contains_key(&(b, a)))
-        .copied()
-        .collect()
 }
 
 #[test]
@@ -287,7 +199,10 @@ fn non_manifold_and_disconnected_inputs_build() {
     cache.set_level(&pm, usize::MAX);
     assert!(cache.triangle_count() >= 2, "both parts keep a triangle");
     cache.set_level(&pm, 0);
-    assert_eq!(triangle_multiset(cache.indices()), triangle_multiset(&indices));
+    assert_eq!(
+        triangle_multiset(cache.indices()),
+        triangle_multiset(&indices)
+    );
 }
 
 #[test]
@@ -308,16 +223,6 @@ fn error_table_is_monotone_and_selects_levels() {
         cache.level() + 1 == pm.level_count() || pm.level_error(cache.level() + 1) > bound,
         "the coarsest level within the bound"
     );
-}
-
-/// Random closed or open meshes for the property tests.
-fn arb_mesh() -> impl Strategy<Value = (IndexedMesh, bool)> {
-    prop_oneof![
-        (4u32..10, 4u32..12, prop::collection::vec(-0.2f32..0.2, 1..40), any::<bool>())
-            .prop_map(|(r, s, noise, seam)| (sphere(r, s, &noise, seam), true)),
-        (2u32..9, 2u32..9, prop::collection::vec(-1.0f32..1.0, 1..30))
-            .prop_map(|(w, h, heights)| (grid(w, h, &heights), false)),
-    ]
 }
 
 proptest! {

@@ -51,7 +51,9 @@ pub enum MeshError {
         count: usize,
     },
     /// A triangle refers to a vertex that does not exist.
-    #[error("index out of range: triangle {triangle} uses vertex {index}, but there are only {vertex_count} vertices")]
+    #[error(
+        "index out of range: triangle {triangle} uses vertex {index}, but there are only {vertex_count} vertices"
+    )]
     IndexOutOfRange {
         /// The triangle.
         triangle: usize,

@@ -142,7 +142,7 @@ impl IndexedMesh {
         if n == 0 || self.indices.is_empty() {
             return Err(MeshError::Empty);
         }
-        if self.indices.len() % 3 != 0 {
+        if !self.indices.len().is_multiple_of(3) {
             return Err(MeshError::IndexCountNotMultipleOfThree {
                 count: self.indices.len(),
             });
@@ -236,7 +236,11 @@ impl IndexedMesh {
         let mut mesh = match ext.as_str() {
             "obj" => load_obj(path)?,
             "ply" => load_ply(path)?,
-            "gltf" | "glb" => load_gltf(path)?.mesh,
+            // The glTF importer validates already and keeps its own report.
+            "gltf" | "glb" => {
+                let import = load_gltf(path)?;
+                return Ok((import.mesh, import.report));
+            }
             _ => {
                 return Err(MeshError::UnsupportedFormat {
                     path: path.display().to_string(),

@@ -42,8 +42,8 @@ impl Default for BuildOptions {
         Self {
             min_triangles: 0,
             max_error: f32::INFINITY,
-            border_weight: std::env::var("BW").ok().and_then(|v| v.parse().ok()).unwrap_or(10.0),
-            min_normal_cos: std::env::var("NC").ok().and_then(|v| v.parse().ok()).unwrap_or(0.25),
+            border_weight: 10.0,
+            min_normal_cos: 0.25,
         }
     }
 }
@@ -92,9 +92,12 @@ struct Builder<'a> {
     target: Vec<u32>,
     collapses: Vec<Collapse>,
     rewrites: Vec<Rewrite>,
+    moves: Vec<(u32, u32, u32)>,
     live_triangles: usize,
     /// False when every position has one attribute vertex: no seams to respect.
     has_seams: bool,
+    /// True when some vertex is pinned: region fronts to respect.
+    has_pinned: bool,
     inv_diagonal: f64,
     scratch: Scratch,
     candidates: Vec<(f64, u32)>,
@@ -125,7 +128,11 @@ impl Scratch {
 /// Positions of a triangle's corners that are not `p`, in winding order after `p`.
 #[inline]
 fn others(tri: [u32; 3], pos: &[u32], p: u32) -> Option<(usize, u32, u32)> {
-    let q = [pos[tri[0] as usize], pos[tri[1] as usize], pos[tri[2] as usize]];
+    let q = [
+        pos[tri[0] as usize],
+        pos[tri[1] as usize],
+        pos[tri[2] as usize],
+    ];
     (0..3)
         .find(|&k| q[k] == p)
         .map(|k| (k, q[(k + 1) % 3], q[(k + 2) % 3]))
@@ -156,6 +163,7 @@ impl<'a> Builder<'a> {
             alive: vec![true; tris.len()],
             live_triangles: tris.len(),
             has_seams: weld.unique < n,
+            has_pinned: pinned.is_some_and(|p| p.contains(&true)),
             tris,
             adj,
             kind: vec![Kind::Manifold; n],
@@ -164,6 +172,7 @@ impl<'a> Builder<'a> {
             target: vec![u32::MAX; n],
             collapses: Vec::new(),
             rewrites: Vec::new(),
+            moves: Vec::new(),
             inv_diagonal: if diagonal > 0.0 { 1.0 / diagonal } else { 1.0 },
             scratch: Scratch {
                 mark: vec![0; n],
@@ -336,9 +345,30 @@ impl<'a> Builder<'a> {
     fn is_border_edge(&self, u: u32, w: u32) -> bool {
         self.adj[u as usize]
             .iter()
-            .filter(|&&t| self.tris[t as usize].iter().any(|&v| self.pos[v as usize] == w))
+            .filter(|&&t| {
+                self.tris[t as usize]
+                    .iter()
+                    .any(|&v| self.pos[v as usize] == w)
+            })
             .count()
             == 1
+    }
+
+    /// True when a triangle around `u` (and `w`, when given) has a pinned corner.
+    ///
+    /// A vertex next to pinned ones is on a region's front: it may only collapse along the
+    /// front, onto a vertex that shares such a triangle. The band of border triangles between
+    /// two regions then stays a strip between two polylines that each side decimates in
+    /// order, so no level of either side can fold it (a boundary collapses the same way).
+    fn touches_pinned(&self, u: u32, w: Option<u32>) -> bool {
+        self.adj[u as usize].iter().any(|&t| {
+            let tri = self.tris[t as usize];
+            let has = |p: u32| tri.iter().any(|&v| self.pos[v as usize] == p);
+            w.is_none_or(has)
+                && tri
+                    .iter()
+                    .any(|&v| self.kind[self.pos[v as usize] as usize] == Kind::Pinned)
+        })
     }
 
     /// True when the two triangles on edge `u-x` use different attribute vertices at either
@@ -453,10 +483,10 @@ impl<'a> Builder<'a> {
             let duplicate = apexes.contains(&a)
                 && apexes.contains(&b)
                 && self.adj[w as usize].iter().any(|&s| {
-                let o = self.tris[s as usize];
-                let has = |p: u32| o.iter().any(|&v| self.pos[v as usize] == p);
-                has(a) && has(b)
-            });
+                    let o = self.tris[s as usize];
+                    let has = |p: u32| o.iter().any(|&v| self.pos[v as usize] == p);
+                    has(a) && has(b)
+                });
             if duplicate {
                 return false;
             }
@@ -492,26 +522,27 @@ impl<'a> Builder<'a> {
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
         let qu = self.quadrics[u as usize];
+        let front = self.has_pinned && self.touches_pinned(u, None);
         for &w in &nu {
             if self.kind[w as usize] == Kind::Pinned
                 || (self.kind[u as usize] == Kind::Border && !self.is_border_edge(u, w))
+                || (front && !self.touches_pinned(u, Some(w)))
             {
                 continue;
             }
-            let qw = &self.quadrics[w as usize];
-            let p = self.points[w as usize];
-            let e = match std::env::var("ASLOD_COST").as_deref() {
-                Ok("B") => qu.eval(p) / qu.weight(),
-                Ok("C") => qu.eval(p) + qw.eval(p),
-                Ok("D") => qu.eval(p) / qu.weight() + qw.eval(p) / qw.weight(),
-                _ => Quadric::merged_error(&qu, qw, p),
-            };
+            // The error of moving u onto w, measured against u's planes (everything already
+            // merged into u): meshoptimizer's choice, which beat the merged quadric
+            // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
+            let e = qu.error(self.points[w as usize]);
             candidates.push((e, w));
         }
         self.scratch.neighbors = nu;
         candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let chosen = if validate {
-            candidates.iter().copied().find(|&(_, w)| self.is_valid(u, w))
+            candidates
+                .iter()
+                .copied()
+                .find(|&(_, w)| self.is_valid(u, w))
         } else {
             candidates.first().copied()
         };
@@ -561,6 +592,9 @@ impl<'a> Builder<'a> {
                 self.adj[w as usize].push(t);
             }
         }
+        let step = self.collapses.len() as u32;
+        self.moves
+            .extend(map.iter().map(|&(old, new)| (step, old, new)));
         self.scratch.map = map;
         let q = self.quadrics[u as usize];
         self.quadrics[w as usize].add(&q);
@@ -607,7 +641,7 @@ impl<'a> Builder<'a> {
             for &x in &ring {
                 self.rank(x, false);
             }
-            if self.collapses.len() % 4096 == 0 {
+            if self.collapses.len().is_multiple_of(4096) {
                 progress(total - self.live_triangles, total);
             }
         }
@@ -615,24 +649,31 @@ impl<'a> Builder<'a> {
     }
 
     /// Phase 6: removal-order layout and packed records.
-    fn finish(self) -> ProgressiveMesh {
+    ///
+    /// Triangles from `owned` on are context: they took part in the checks but are neither
+    /// laid out nor recorded.
+    fn finish(self, owned: usize) -> Built {
         let tri_count = self.tris.len();
         let mut slot = vec![u32::MAX; tri_count];
-        let mut order: Vec<u32> = Vec::with_capacity(tri_count);
-        for (t, &alive) in self.alive.iter().enumerate() {
+        let mut order: Vec<u32> = Vec::with_capacity(owned);
+        for (t, &alive) in self.alive[..owned].iter().enumerate() {
             if alive {
                 order.push(t as u32);
             }
         }
         let base_triangles = order.len();
         for c in self.collapses.iter().rev() {
-            order.extend_from_slice(&c.removed[..c.removed_count as usize]);
+            for &t in &c.removed[..c.removed_count as usize] {
+                if (t as usize) < owned {
+                    order.push(t);
+                }
+            }
         }
         for (s, &t) in order.iter().enumerate() {
             slot[t as usize] = s as u32;
         }
         // The full-detail index buffer, in slot order, with the original corners.
-        let mut indices = Vec::with_capacity(3 * tri_count);
+        let mut indices = Vec::with_capacity(3 * owned);
         for &t in &order {
             indices.extend_from_slice(&self.mesh.indices[3 * t as usize..3 * t as usize + 3]);
         }
@@ -642,7 +683,11 @@ impl<'a> Builder<'a> {
         let mut errors = Vec::with_capacity(self.collapses.len());
         for c in &self.collapses {
             let first_pair = pairs.len();
+            let first_corner = corners.len();
             for &(t, k, old, new) in &self.rewrites[c.rewrites.clone()] {
+                if t as usize >= owned {
+                    continue;
+                }
                 let pair = match pairs[first_pair..].iter().position(|p| *p == [old, new]) {
                     Some(i) => i,
                     None => {
@@ -654,32 +699,49 @@ impl<'a> Builder<'a> {
                 corners.push(corner << 1 | pair as u32);
             }
             steps.push(StepHeader {
-                corners: (c.rewrites.end - c.rewrites.start) as u16,
-                removed: c.removed_count,
+                corners: (corners.len() - first_corner) as u16,
+                removed: c.removed[..c.removed_count as usize]
+                    .iter()
+                    .filter(|&&t| (t as usize) < owned)
+                    .count() as u8,
                 pairs: (pairs.len() - first_pair) as u8,
             });
             errors.push(c.error);
         }
         let mut vertices = self.mesh.clone();
         vertices.indices = indices;
-        ProgressiveMesh {
-            mesh: vertices,
-            base_triangles: base_triangles as u32,
-            steps,
-            corners,
-            pairs,
-            errors,
+        Built {
+            mesh: ProgressiveMesh {
+                mesh: vertices,
+                base_triangles: base_triangles as u32,
+                steps,
+                corners,
+                pairs,
+                errors,
+            },
+            moves: self.moves,
         }
     }
 }
 
-/// Runs the whole build. `mesh` must be validated.
-pub(super) fn build(
+/// What a build produces: the progressive mesh, and every attribute vertex's move.
+pub(crate) struct Built {
+    pub(crate) mesh: ProgressiveMesh,
+    /// `(step, old, new)`: at `step` (0-based), attribute vertex `old` was replaced by `new`
+    /// everywhere, context triangles included. Regions resolve their neighbours' vertices
+    /// with it.
+    pub(crate) moves: Vec<(u32, u32, u32)>,
+}
+
+/// Runs the whole build. `mesh` must be validated. Triangles from `owned` on are context
+/// (see [`Builder::finish`]).
+pub(crate) fn build(
     mesh: &IndexedMesh,
     options: &BuildOptions,
     pinned: Option<&[bool]>,
+    owned: usize,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<ProgressiveMesh, MeshError> {
+) -> Result<Built, MeshError> {
     // Corner ids are packed with one flag bit into a u32.
     if mesh.indices.len() >= (1 << 31) {
         return Err(MeshError::parse(
@@ -693,5 +755,5 @@ pub(super) fn build(
     }
     let mut builder = Builder::new(mesh, options, pinned);
     builder.run(progress);
-    Ok(builder.finish())
+    Ok(builder.finish(owned.min(mesh.triangle_count())))
 }

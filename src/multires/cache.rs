@@ -41,6 +41,12 @@ impl PolygonCache {
         &self.indices[..3 * self.triangles]
     }
 
+    /// The whole index buffer, for regions to resolve their foreign corners in place.
+    #[inline]
+    pub(crate) fn indices_mut(&mut self) -> &mut [u32] {
+        &mut self.indices
+    }
+
     /// Number of active triangles.
     #[inline]
     #[must_use]

@@ -42,7 +42,7 @@
 //! # Ok::<(), bevy_aslod::mesh::MeshError>(())
 //! ```
 
-mod build;
+pub(crate) mod build;
 mod cache;
 mod heap;
 mod quadric;
@@ -123,7 +123,8 @@ impl ProgressiveMesh {
                 found: pinned.len(),
             });
         }
-        build::build(&mesh, options, pinned, progress)
+        let owned = mesh.triangle_count();
+        Ok(build::build(&mesh, options, pinned, owned, progress)?.mesh)
     }
 
     /// The vertex table and the full-detail triangles (in slot order).
@@ -192,6 +193,21 @@ impl ProgressiveMesh {
     pub fn level_for_error(&self, error: f32) -> usize {
         // errors is monotone: count the collapses whose error stays within the bound.
         self.errors.partition_point(|&e| e <= error)
+    }
+
+    /// Appends vertices that no triangle uses yet (regions add their neighbours'
+    /// representatives this way). `vertices` must have the same attributes as the table.
+    pub(crate) fn append_vertices(&mut self, vertices: &IndexedMesh) {
+        fn extend<T: Copy>(to: &mut Option<Vec<T>>, from: &Option<Vec<T>>) {
+            if let (Some(to), Some(from)) = (to.as_mut(), from.as_ref()) {
+                to.extend_from_slice(from);
+            }
+        }
+        self.mesh.positions.extend_from_slice(&vertices.positions);
+        extend(&mut self.mesh.normals, &vertices.normals);
+        extend(&mut self.mesh.uvs, &vertices.uvs);
+        extend(&mut self.mesh.joints, &vertices.joints);
+        extend(&mut self.mesh.weights, &vertices.weights);
     }
 
     /// Bytes of the shared data: the vertex table, the index buffer and the records.

@@ -68,16 +68,13 @@ impl Quadric {
         r.max(0.0)
     }
 
-    pub(crate) fn weight(&self) -> f64 { self.weight.max(1e-300) }
-
-    /// Mean squared distance of `p` to the planes of `a + b`.
+    /// Mean squared distance of `p` to the planes (`0` for an empty quadric).
     #[inline]
-    pub(crate) fn merged_error(a: &Self, b: &Self, p: DVec3) -> f64 {
-        let w = a.weight + b.weight;
-        if w <= 0.0 {
+    pub(crate) fn error(&self, p: DVec3) -> f64 {
+        if self.weight <= 0.0 {
             return 0.0;
         }
-        (a.eval(p) + b.eval(p)) / w
+        self.eval(p) / self.weight
     }
 }
 
@@ -93,7 +90,7 @@ mod tests {
         let mut sum = q;
         sum.add(&Quadric::from_plane(DVec3::X, 0.0, 2.0));
         // distance² to y=1 is 4, to x=0 is 25; mean = (2*4 + 2*25) / 4.
-        let e = Quadric::merged_error(&sum, &Quadric::default(), DVec3::new(5.0, 3.0, -7.0));
+        let e = sum.error(DVec3::new(5.0, 3.0, -7.0));
         assert!((e - 14.5).abs() < 1e-12, "{e}");
     }
 

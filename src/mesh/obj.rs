@@ -1,0 +1,354 @@
+//! Wavefront OBJ import and export.
+//!
+//! Import reads `v`, `vt`, `vn` and `f` lines and ignores every other statement (`o`, `g`,
+//! `s`, `usemtl`, `l`, ...). OBJ indexes positions, texture coordinates and normals
+//! separately; an [`IndexedMesh`] has one index per vertex, so every distinct
+//! `(v, vt, vn)` combination becomes one vertex. Where a UV or normal seam runs, several
+//! vertices therefore share one position, which is what the simplifier expects (see
+//! [`weld_positions`](super::weld_positions)).
+
+use super::{IndexedMesh, MeshError, MeshResult};
+use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+use std::io::{self, BufWriter, Write};
+use std::ops::Range;
+use std::path::Path;
+
+/// Marks a corner that has no texture coordinate or normal index.
+const NONE: u32 = u32::MAX;
+
+/// One face corner: 0-based indices into the `v`, `vt` and `vn` lists ([`NONE`] if absent).
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+struct Corner {
+    v: u32,
+    vt: u32,
+    vn: u32,
+}
+
+/// Reads and parses an OBJ file; see [`parse_obj`].
+///
+/// Bytes that are not UTF-8 (in comments or material names, say) are replaced, not rejected.
+///
+/// # Errors
+/// [`MeshError::Io`] when the file cannot be read, otherwise the errors of [`parse_obj`].
+pub fn load_obj(path: &Path) -> MeshResult<IndexedMesh> {
+    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+    parse_obj(&String::from_utf8_lossy(&bytes))
+}
+
+/// Parses OBJ text into an indexed triangle mesh.
+///
+/// Faces may use `v`, `v/vt`, `v//vn` or `v/vt/vn` corners, with 1-based or negative
+/// (relative) indices; polygons are fan-triangulated. When no face corner refers to a `vt` or
+/// `vn`, vertex `i` of the mesh is exactly the `i`-th `v` line, unreferenced ones included.
+/// Otherwise the mesh has one vertex per distinct corner combination, in order of first use.
+/// If only some corners have a texture coordinate the others get `(0, 0)`; if only some have a
+/// normal, normals are dropped for the whole mesh (a zero normal would be worse than none).
+///
+/// The mesh is not validated; call [`IndexedMesh::validate`] before using it.
+///
+/// # Errors
+/// [`MeshError::Parse`] naming the line of a malformed statement, a non-finite number, a face
+/// with fewer than three corners, or an index that is zero or refers to no vertex.
+///
+/// # Example
+/// ```
+/// use bevy_aslod::mesh::parse_obj;
+///
+/// let mesh = parse_obj("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")?;
+/// assert_eq!(mesh.vertex_count(), 4);
+/// assert_eq!(mesh.indices, vec![0, 1, 2, 0, 2, 3]);
+/// # Ok::<(), bevy_aslod::mesh::MeshError>(())
+/// ```
+pub fn parse_obj(text: &str) -> MeshResult<IndexedMesh> {
+    let mut positions: Vec<Vec3> = Vec::new();
+    let mut texcoords: Vec<Vec2> = Vec::new();
+    let mut normals: Vec<Vec3> = Vec::new();
+    let mut triangles: Vec<[Corner; 3]> = Vec::new();
+    // The line of each triangle, so that a range error found at the end can name it.
+    let mut triangle_lines: Vec<usize> = Vec::new();
+    let mut face: Vec<Corner> = Vec::new();
+
+    for (line_index, raw) in text.lines().enumerate() {
+        let line_number = line_index + 1;
+        let err = |message: String| MeshError::parse("OBJ", format!("line {line_number}"), message);
+        let content = raw.split_once('#').map_or(raw, |(before, _)| before);
+        let mut tokens = content.split_whitespace();
+        let Some(keyword) = tokens.next() else {
+            continue;
+        };
+        match keyword {
+            "v" => positions.push(Vec3::from(
+                parse_floats::<3>(&mut tokens, 3, "v").map_err(err)?,
+            )),
+            "vt" => texcoords.push(Vec2::from(
+                parse_floats::<2>(&mut tokens, 1, "vt").map_err(err)?,
+            )),
+            "vn" => normals.push(Vec3::from(
+                parse_floats::<3>(&mut tokens, 3, "vn").map_err(err)?,
+            )),
+            "f" => {
+                face.clear();
+                for token in tokens {
+                    face.push(
+                        parse_corner(token, [positions.len(), texcoords.len(), normals.len()])
+                            .map_err(err)?,
+                    );
+                }
+                if face.len() < 3 {
+                    return Err(err(format!(
+                        "a face needs at least 3 vertices, found {}",
+                        face.len()
+                    )));
+                }
+                for i in 1..face.len() - 1 {
+                    triangles.push([face[0], face[i], face[i + 1]]);
+                    triangle_lines.push(line_number);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    // Positive indices may refer forward, so ranges are checked once every list is complete.
+    for (tri, &line) in triangles.iter().zip(&triangle_lines) {
+        for c in tri {
+            let checks = [
+                ("v", c.v, positions.len()),
+                ("vt", c.vt, texcoords.len()),
+                ("vn", c.vn, normals.len()),
+            ];
+            for (what, index, len) in checks {
+                if index != NONE && index as usize >= len {
+                    return Err(MeshError::parse(
+                        "OBJ",
+                        format!("line {line}"),
+                        format!(
+                            "face refers to {what} {}, but the file has only {len} {what} lines",
+                            u64::from(index) + 1
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+
+    let any_vt = triangles.iter().flatten().any(|c| c.vt != NONE);
+    let any_vn = triangles.iter().flatten().any(|c| c.vn != NONE);
+    if !any_vt && !any_vn {
+        let indices = triangles.iter().flatten().map(|c| c.v).collect();
+        return Ok(IndexedMesh::new(positions, indices));
+    }
+
+    let all_vn = triangles.iter().flatten().all(|c| c.vn != NONE);
+    if any_vn && !all_vn {
+        log::warn!("OBJ: only some face corners have normals; dropping normals");
+    }
+    let keep_vn = all_vn;
+
+    let mut mesh = IndexedMesh {
+        uvs: any_vt.then(Vec::new),
+        normals: keep_vn.then(Vec::new),
+        ..IndexedMesh::default()
+    };
+    let mut vertex_of: HashMap<Corner, u32> = HashMap::new();
+    mesh.indices.reserve(triangles.len() * 3);
+    for &c in triangles.iter().flatten() {
+        let key = Corner {
+            vn: if keep_vn { c.vn } else { NONE },
+            ..c
+        };
+        let next = mesh.positions.len() as u32;
+        let vertex = *vertex_of.entry(key).or_insert_with(|| {
+            mesh.positions.push(positions[c.v as usize]);
+            if let Some(uvs) = &mut mesh.uvs {
+                uvs.push(texcoords.get(c.vt as usize).copied().unwrap_or(Vec2::ZERO));
+            }
+            if let Some(ns) = &mut mesh.normals {
+                ns.push(normals[c.vn as usize]);
+            }
+            next
+        });
+        mesh.indices.push(vertex);
+    }
+    Ok(mesh)
+}
+
+/// Parses up to `N` floats (at least `required`; missing optional ones are 0). Extra numbers,
+/// such as a `w` or the vertex colours some tools append to `v`, are ignored.
+fn parse_floats<'a, const N: usize>(
+    tokens: &mut impl Iterator<Item = &'a str>,
+    required: usize,
+    keyword: &str,
+) -> Result<[f32; N], String> {
+    let mut out = [0.0; N];
+    for (i, slot) in out.iter_mut().enumerate() {
+        let Some(token) = tokens.next() else {
+            if i < required {
+                return Err(format!("`{keyword}` needs {required} numbers, found {i}"));
+            }
+            break;
+        };
+        let value: f32 = token
+            .parse()
+            .map_err(|_| format!("`{keyword}`: `{token}` is not a number"))?;
+        if !value.is_finite() {
+            return Err(format!("`{keyword}`: non-finite number `{token}`"));
+        }
+        *slot = value;
+    }
+    Ok(out)
+}
+
+/// Parses a face corner `v`, `v/vt`, `v//vn` or `v/vt/vn`. `counts` are the numbers of `v`,
+/// `vt` and `vn` lines read so far, which negative indices are relative to.
+fn parse_corner(token: &str, counts: [usize; 3]) -> Result<Corner, String> {
+    const NAMES: [&str; 3] = ["v", "vt", "vn"];
+    let mut out = [NONE; 3];
+    let mut parts = token.split('/');
+    for (slot, (name, count)) in out.iter_mut().zip(NAMES.iter().zip(counts)) {
+        match parts.next() {
+            Some("") if *name != "v" => {}
+            Some(part) => *slot = resolve_index(part, count, name)?,
+            None => break,
+        }
+    }
+    if parts.next().is_some() {
+        return Err(format!("malformed face corner `{token}`"));
+    }
+    Ok(Corner {
+        v: out[0],
+        vt: out[1],
+        vn: out[2],
+    })
+}
+
+/// Turns a 1-based or negative (relative) OBJ index into a 0-based one.
+fn resolve_index(part: &str, count: usize, name: &str) -> Result<u32, String> {
+    let index: i64 = part
+        .parse()
+        .map_err(|_| format!("face corner: `{part}` is not a {name} index"))?;
+    let resolved = match index {
+        0 => {
+            return Err(format!(
+                "{name} index 0 is invalid (OBJ indices start at 1)"
+            ));
+        }
+        i if i > 0 => i - 1,
+        // -1 is the most recent line, so the index counts back from the current length.
+        i => {
+            let r = count as i64 + i;
+            if r < 0 {
+                return Err(format!(
+                    "relative {name} index {i} reaches before the first of {count} {name} lines"
+                ));
+            }
+            r
+        }
+    };
+    // NONE is reserved, so the largest usable index is one below it.
+    u32::try_from(resolved)
+        .ok()
+        .filter(|&r| r != NONE)
+        .ok_or_else(|| format!("{name} index {index} is too large"))
+}
+
+/// Writes a mesh as OBJ: `v` lines, then `vt` and `vn` lines where the mesh has them, then one
+/// `f` line per triangle with 1-based indices (`a`, `a/a`, `a//a` or `a/a/a`).
+///
+/// Coordinates are written in Rust's shortest round-trip form, so [`parse_obj`] reads back
+/// exactly the same floats.
+///
+/// # Errors
+/// An [`io::ErrorKind::InvalidInput`] error when an attribute does not have one entry per
+/// position or an index is out of range, and any error of the writer.
+pub fn write_obj(mesh: &IndexedMesh, w: &mut impl Write) -> io::Result<()> {
+    write_obj_groups(mesh, &[(String::new(), 0..mesh.triangle_count())], w)
+}
+
+/// Writes a mesh as OBJ like [`write_obj`], with its triangles split into named groups.
+///
+/// Each `(name, range)` writes `g name` followed by the triangles in `range` (triangle, not
+/// index, numbers). An empty name writes no `g` line. Whitespace in a name becomes `_`, since
+/// OBJ would read it as several groups. Triangles outside every range are not written;
+/// overlapping ranges write their triangles twice.
+///
+/// # Errors
+/// An [`io::ErrorKind::InvalidInput`] error when a range reaches past the last triangle, an
+/// attribute does not have one entry per position or an index is out of range, and any error
+/// of the writer.
+pub fn write_obj_groups(
+    mesh: &IndexedMesh,
+    groups: &[(String, Range<usize>)],
+    w: &mut impl Write,
+) -> io::Result<()> {
+    check_writable(mesh, groups)?;
+    let mut out = BufWriter::new(w);
+    writeln!(
+        out,
+        "# bevy_aslod: {} vertices, {} triangles",
+        mesh.vertex_count(),
+        mesh.triangle_count()
+    )?;
+    for p in &mesh.positions {
+        writeln!(out, "v {} {} {}", p.x, p.y, p.z)?;
+    }
+    for t in mesh.uvs.iter().flatten() {
+        writeln!(out, "vt {} {}", t.x, t.y)?;
+    }
+    for n in mesh.normals.iter().flatten() {
+        writeln!(out, "vn {} {} {}", n.x, n.y, n.z)?;
+    }
+    let (has_vt, has_vn) = (mesh.uvs.is_some(), mesh.normals.is_some());
+    for (name, range) in groups {
+        if !name.is_empty() {
+            let name: String = name
+                .chars()
+                .map(|c| if c.is_whitespace() { '_' } else { c })
+                .collect();
+            writeln!(out, "g {name}")?;
+        }
+        for tri in mesh.indices[3 * range.start..3 * range.end].chunks_exact(3) {
+            out.write_all(b"f")?;
+            for &i in tri {
+                let i = u64::from(i) + 1;
+                match (has_vt, has_vn) {
+                    (false, false) => write!(out, " {i}")?,
+                    (true, false) => write!(out, " {i}/{i}")?,
+                    (false, true) => write!(out, " {i}//{i}")?,
+                    (true, true) => write!(out, " {i}/{i}/{i}")?,
+                }
+            }
+            out.write_all(b"\n")?;
+        }
+    }
+    out.flush()
+}
+
+/// Rejects what would write a broken file (or slice out of bounds).
+fn check_writable(mesh: &IndexedMesh, groups: &[(String, Range<usize>)]) -> io::Result<()> {
+    let invalid = |message: String| io::Error::new(io::ErrorKind::InvalidInput, message);
+    let n = mesh.vertex_count();
+    let lens = [
+        ("normals", mesh.normals.as_ref().map(Vec::len)),
+        ("uvs", mesh.uvs.as_ref().map(Vec::len)),
+    ];
+    for (name, len) in lens {
+        if let Some(len) = len.filter(|&len| len != n) {
+            return Err(invalid(format!("{len} {name} for {n} positions")));
+        }
+    }
+    if let Some(&i) = mesh.indices.iter().find(|&&i| i as usize >= n) {
+        return Err(invalid(format!("index {i} out of range ({n} vertices)")));
+    }
+    let triangles = mesh.triangle_count();
+    if let Some((name, range)) = groups
+        .iter()
+        .find(|(_, r)| r.start > r.end || r.end > triangles)
+    {
+        return Err(invalid(format!(
+            "group `{name}`: triangles {range:?} out of range ({triangles} triangles)"
+        )));
+    }
+    Ok(())
+}

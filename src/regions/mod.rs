@@ -1,0 +1,508 @@
+//! Regions: parts of one mesh that change detail independently, without cracks.
+//!
+//! ASLOD section 4 (coarse view-dependence): a large mesh is cut into regions so that its
+//! near side can be finer than its far side. The cut goes through the vertices, not the
+//! triangles:
+//!
+//! - every vertex belongs to exactly one region ([`Partition`]);
+//! - a triangle belongs to the region that holds at least two of its corners; a triangle
+//!   whose three corners lie in three regions belongs to the one with the smallest id
+//!   ([`triangle_owner`]; the paper leaves this case open);
+//! - a region's progressive sequence only collapses edges between two of its own vertices,
+//!   so an edge across a border is never collapsed; edges of border triangles that lie inside
+//!   one region may be;
+//! - a border triangle's corners in other regions ("foreign" corners) are looked up at draw
+//!   time: each one is replaced by the vertex that represents it in its own region at that
+//!   region's current level. Both triangles on any edge see the same representatives, so the
+//!   border stays watertight whatever levels the neighbours have; a border triangle that
+//!   becomes degenerate is not emitted.
+//!
+//! Each region's sequence is built on the triangles it owns plus, as context, the
+//! neighbours' triangles around its vertices, so the validity checks (link condition, flips)
+//! see the whole surface around every collapse.
+//!
+//! ```
+//! use bevy_aslod::mesh::IndexedMesh;
+//! use bevy_aslod::multires::BuildOptions;
+//! use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh};
+//! use glam::Vec3;
+//!
+//! // A 9x9-vertex terrain patch cut into 2x2 regions.
+//! let mut positions = Vec::new();
+//! for z in 0..9 {
+//!     for x in 0..9 {
+//!         positions.push(Vec3::new(x as f32, ((x * 7 + z * 3) % 5) as f32 * 0.2, z as f32));
+//!     }
+//! }
+//! let mut indices = Vec::new();
+//! for z in 0..8u32 {
+//!     for x in 0..8u32 {
+//!         let i = z * 9 + x;
+//!         indices.extend_from_slice(&[i, i + 9, i + 1, i + 1, i + 9, i + 10]);
+//!     }
+//! }
+//! let mesh = IndexedMesh::new(positions, indices);
+//! let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2)?;
+//! let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default())?;
+//! let mut caches = RegionCaches::new(&regions);
+//! caches.set_triangle_count(&regions, 0, 4); // the first region coarse, the rest full
+//! let mut out = Vec::new();
+//! caches.write_indices(&regions, 0, &mut out);
+//! assert!(out.len() / 3 <= 4);
+//! # Ok::<(), bevy_aslod::regions::RegionError>(())
+//! ```
+
+mod cache;
+mod partition;
+
+pub use cache::RegionCaches;
+pub use partition::{GridPlane, Partition};
+
+use crate::mesh::{IndexedMesh, MeshError, weld_positions};
+use crate::multires::{BuildOptions, ProgressiveMesh, build};
+use glam::Vec3;
+use thiserror::Error;
+
+/// What can go wrong when partitioning or building regions.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RegionError {
+    /// The per-vertex ids do not match the vertex count.
+    #[error("region ids: expected one per vertex ({expected}), found {found}")]
+    LengthMismatch {
+        /// Vertex count.
+        expected: usize,
+        /// Ids given.
+        found: usize,
+    },
+    /// A grid with zero cells or a clustering into zero regions was asked for.
+    #[error("a partition needs at least one region (got zero cells or a zero target)")]
+    ZeroRegions,
+    /// The mesh has no vertices.
+    #[error("cannot partition an empty mesh")]
+    EmptyMesh,
+    /// The partition was made for another mesh.
+    #[error("the partition has {found} vertices but the mesh has {expected}")]
+    PartitionMismatch {
+        /// Vertex count of the mesh.
+        expected: usize,
+        /// Vertex count of the partition.
+        found: usize,
+    },
+    /// The mesh itself is invalid.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+}
+
+/// The region that owns a triangle whose corners lie in `regions`: the one holding at least
+/// two corners, or, when all three differ, the smallest id.
+///
+/// ```
+/// use bevy_aslod::regions::triangle_owner;
+/// assert_eq!(triangle_owner([4, 2, 4]), 4);
+/// assert_eq!(triangle_owner([5, 3, 7]), 3);
+/// ```
+#[inline]
+#[must_use]
+pub fn triangle_owner(regions: [u32; 3]) -> u32 {
+    let [a, b, c] = regions;
+    if a == b || a == c {
+        a
+    } else if b == c {
+        b
+    } else {
+        a.min(b).min(c)
+    }
+}
+
+/// A border-triangle corner that holds another region's vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct BorderCorner {
+    /// Index into the region's full-detail index buffer.
+    pub(crate) corner: u32,
+    /// The region that owns the vertex.
+    pub(crate) owner: u32,
+    /// Range in `Region::chain`: the vertex and its successive representatives.
+    pub(crate) chain_start: u32,
+    pub(crate) chain_len: u32,
+}
+
+/// One region of a [`RegionMesh`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Region {
+    /// The region's progressive sequence, over a local vertex table.
+    pub(crate) mesh: ProgressiveMesh,
+    /// Local vertex -> vertex of the source mesh.
+    pub(crate) global: Vec<u32>,
+    /// Foreign corners, sorted by corner.
+    pub(crate) border: Vec<BorderCorner>,
+    /// `(removed at step, local vertex)`: a foreign vertex and its representatives in turn;
+    /// the last one is never removed (`u32::MAX`).
+    pub(crate) chain: Vec<(u32, u32)>,
+    /// Regions whose vertices appear in this region's triangles.
+    pub(crate) neighbors: Vec<u32>,
+    /// Regions in whose triangles this region's vertices appear.
+    pub(crate) dependents: Vec<u32>,
+    pub(crate) own_vertices: usize,
+    pub(crate) bounds: (Vec3, Vec3),
+    /// Local vertex -> the first local vertex at the same position (seams weld).
+    pub(crate) position_of: Vec<u32>,
+}
+
+impl Region {
+    /// The region's progressive sequence. Its vertex table is local: see
+    /// [`global_vertices`](Self::global_vertices).
+    #[inline]
+    #[must_use]
+    pub fn progressive_mesh(&self) -> &ProgressiveMesh {
+        &self.mesh
+    }
+
+    /// Local vertex index -> vertex index in the source mesh.
+    #[inline]
+    #[must_use]
+    pub fn global_vertices(&self) -> &[u32] {
+        &self.global
+    }
+
+    /// Fewest triangles the region can show (its base mesh).
+    #[inline]
+    #[must_use]
+    pub fn min_triangles(&self) -> usize {
+        self.mesh.min_triangles()
+    }
+
+    /// Triangles at full detail.
+    #[inline]
+    #[must_use]
+    pub fn max_triangles(&self) -> usize {
+        self.mesh.max_triangles()
+    }
+
+    /// Axis-aligned bounds of the region's own vertices, in the mesh's space.
+    #[inline]
+    #[must_use]
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds
+    }
+
+    /// Positions of the region's own vertices (for fitting a bounding box).
+    pub fn own_positions(&self) -> impl Iterator<Item = Vec3> + '_ {
+        self.mesh.mesh().positions[..self.own_vertices]
+            .iter()
+            .copied()
+    }
+
+    /// Regions whose vertices appear in this region's border triangles.
+    #[inline]
+    #[must_use]
+    pub fn neighbors(&self) -> &[u32] {
+        &self.neighbors
+    }
+}
+
+/// A partitioned multiresolution mesh: one progressive sequence per region, sharing the
+/// source mesh's vertices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RegionMesh {
+    partition: Partition,
+    regions: Vec<Region>,
+    vertex_count: usize,
+}
+
+impl RegionMesh {
+    /// Partitions `mesh` by `partition` and builds every region's sequence.
+    ///
+    /// # Errors
+    /// [`RegionError::PartitionMismatch`] when the partition has another vertex count, and
+    /// any [`MeshError`] from validating the mesh.
+    pub fn build(
+        mesh: &IndexedMesh,
+        partition: &Partition,
+        options: &BuildOptions,
+    ) -> Result<Self, RegionError> {
+        if partition.region_of().len() != mesh.vertex_count() {
+            return Err(RegionError::PartitionMismatch {
+                expected: mesh.vertex_count(),
+                found: partition.region_of().len(),
+            });
+        }
+        let mut mesh = mesh.clone();
+        mesh.validate()?;
+        // Seam copies must share their region, or the border would split a position.
+        let weld = weld_positions(&mesh.positions);
+        let region_of: Vec<u32> = (0..mesh.vertex_count())
+            .map(|v| partition.region_of()[weld.remap[v] as usize])
+            .collect();
+        let count = partition.region_count();
+        let owner: Vec<u32> = mesh
+            .indices
+            .chunks_exact(3)
+            .map(|t| triangle_owner([t[0], t[1], t[2]].map(|v| region_of[v as usize])))
+            .collect();
+
+        // Owned and context triangles per region.
+        let mut owned: Vec<Vec<u32>> = vec![Vec::new(); count];
+        let mut context: Vec<Vec<u32>> = vec![Vec::new(); count];
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            let o = owner[t];
+            owned[o as usize].push(t as u32);
+            // Each other region with a corner here sees the triangle as context, once.
+            let mut seen = [o; 3];
+            let mut n = 1;
+            for &v in tri {
+                let r = region_of[v as usize];
+                if !seen[..n].contains(&r) {
+                    seen[n] = r;
+                    n += 1;
+                    context[r as usize].push(t as u32);
+                }
+            }
+        }
+
+        // Build every region, in parallel where there are cores.
+        let built: Vec<Result<(Region, Vec<(u32, u32, u32)>), RegionError>> = {
+            let work: Vec<usize> = (0..count).collect();
+            let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let chunk = count.div_ceil(threads.max(1)).max(1);
+            let (mesh, region_of, owned, context) = (&mesh, &region_of, &owned, &context);
+            std::thread::scope(|scope| {
+                let handles: Vec<_> = work
+                    .chunks(chunk)
+                    .map(|regions| {
+                        scope.spawn(move || {
+                            regions
+                                .iter()
+                                .map(|&r| {
+                                    build_region(
+                                        mesh,
+                                        region_of,
+                                        r as u32,
+                                        &owned[r],
+                                        &context[r],
+                                        options,
+                                    )
+                                })
+                                .collect::<Vec<_>>()
+                        })
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .flat_map(|h| h.join().expect("region build does not panic"))
+                    .collect()
+            })
+        };
+        let mut regions = Vec::with_capacity(count);
+        // moves[v] = (step, parent) in v's own region.
+        let mut moves = vec![(u32::MAX, u32::MAX); mesh.vertex_count()];
+        for result in built {
+            let (region, region_moves) = result?;
+            for (step, old, new) in region_moves {
+                moves[region.global[old as usize] as usize] = (step, region.global[new as usize]);
+            }
+            regions.push(region);
+        }
+        for (r, region) in regions.iter_mut().enumerate() {
+            link_border(region, r as u32, &region_of, &moves, &mesh);
+        }
+        for r in 0..regions.len() {
+            for n in regions[r].neighbors.clone() {
+                regions[n as usize].dependents.push(r as u32);
+            }
+        }
+        Ok(Self {
+            partition: Partition::from_region_of(region_of, count),
+            regions,
+            vertex_count: mesh.vertex_count(),
+        })
+    }
+
+    /// The regions, indexed by region id.
+    #[inline]
+    #[must_use]
+    pub fn regions(&self) -> &[Region] {
+        &self.regions
+    }
+
+    /// The partition the mesh was built with (seam copies follow their position).
+    #[inline]
+    #[must_use]
+    pub fn partition(&self) -> &Partition {
+        &self.partition
+    }
+
+    /// Vertices of the source mesh.
+    #[inline]
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    /// Bytes of the shared data of every region.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.regions
+            .iter()
+            .map(|r| {
+                r.mesh.memory_bytes()
+                    + r.global.len() * 4
+                    + r.border.len() * size_of::<BorderCorner>()
+                    + r.chain.len() * 8
+            })
+            .sum()
+    }
+}
+
+/// Builds one region's sequence over its owned triangles, with context triangles around its
+/// vertices, and returns the vertex moves in local indices.
+fn build_region(
+    mesh: &IndexedMesh,
+    region_of: &[u32],
+    r: u32,
+    owned: &[u32],
+    context: &[u32],
+    options: &BuildOptions,
+) -> Result<(Region, Vec<(u32, u32, u32)>), RegionError> {
+    // Local vertex table: own vertices first (by global id), then foreign ones.
+    let mut global: Vec<u32> = owned
+        .iter()
+        .chain(context)
+        .flat_map(|&t| {
+            mesh.indices[3 * t as usize..3 * t as usize + 3]
+                .iter()
+                .copied()
+        })
+        .collect();
+    global.sort_unstable_by_key(|&v| (region_of[v as usize] != r, v));
+    global.dedup();
+    let own_vertices = global
+        .iter()
+        .take_while(|&&v| region_of[v as usize] == r)
+        .count();
+    let mut local = std::collections::HashMap::with_capacity(global.len());
+    for (i, &v) in global.iter().enumerate() {
+        local.insert(v, i as u32);
+    }
+    let mut sub = subset(mesh, &global);
+    sub.indices = owned
+        .iter()
+        .chain(context)
+        .flat_map(|&t| mesh.indices[3 * t as usize..3 * t as usize + 3].iter())
+        .map(|v| local[v])
+        .collect();
+    // Foreign vertices are pinned. So are junctions: own vertices next to vertices of two or
+    // more other regions, where the fronts of three regions meet and no single front order
+    // exists to collapse along.
+    let mut pinned: Vec<bool> = (0..global.len()).map(|i| i >= own_vertices).collect();
+    let mut foreign_region: Vec<u32> = vec![u32::MAX; own_vertices];
+    for t in sub.indices.chunks_exact(3) {
+        for &a in t {
+            for &b in t {
+                let (a, b) = (a as usize, b as usize);
+                if a < own_vertices && b >= own_vertices {
+                    let region = region_of[global[b] as usize];
+                    match foreign_region[a] {
+                        u32::MAX => foreign_region[a] = region,
+                        seen if seen != region => pinned[a] = true,
+                        _ => {}
+                    }
+                }
+            }
+        }
+    }
+    let built = build::build(&sub, options, Some(&pinned), owned.len(), &mut |_, _| {})?;
+    let bounds = sub.positions[..own_vertices]
+        .iter()
+        .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    let region = Region {
+        mesh: built.mesh,
+        global,
+        border: Vec::new(),
+        chain: Vec::new(),
+        neighbors: Vec::new(),
+        dependents: Vec::new(),
+        position_of: Vec::new(),
+        own_vertices,
+        bounds,
+    };
+    Ok((region, built.moves))
+}
+
+/// The attributes of `vertices`, in that order, with no triangles.
+fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
+    fn pick<T: Copy>(v: &Option<Vec<T>>, vertices: &[u32]) -> Option<Vec<T>> {
+        v.as_ref()
+            .map(|v| vertices.iter().map(|&i| v[i as usize]).collect())
+    }
+    IndexedMesh {
+        positions: vertices
+            .iter()
+            .map(|&i| mesh.positions[i as usize])
+            .collect(),
+        normals: pick(&mesh.normals, vertices),
+        uvs: pick(&mesh.uvs, vertices),
+        joints: pick(&mesh.joints, vertices),
+        weights: pick(&mesh.weights, vertices),
+        indices: Vec::new(),
+    }
+}
+
+/// Finds the region's foreign corners and the chain of representatives of each, adding the
+/// representatives to the local vertex table where they are missing.
+fn link_border(
+    region: &mut Region,
+    r: u32,
+    region_of: &[u32],
+    moves: &[(u32, u32)],
+    mesh: &IndexedMesh,
+) {
+    let mut local: std::collections::HashMap<u32, u32> = region
+        .global
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| (v, i as u32))
+        .collect();
+    let mut extra = Vec::new();
+    let indices = region.mesh.full_indices().to_vec();
+    let mut neighbors = Vec::new();
+    for (corner, &lv) in indices.iter().enumerate() {
+        let v = region.global[lv as usize];
+        let owner = region_of[v as usize];
+        if owner == r {
+            continue;
+        }
+        neighbors.push(owner);
+        let chain_start = region.chain.len() as u32;
+        let mut g = v;
+        loop {
+            let (step, parent) = moves[g as usize];
+            let l = *local.entry(g).or_insert_with(|| {
+                extra.push(g);
+                (region.global.len() + extra.len() - 1) as u32
+            });
+            region.chain.push((step, l));
+            if step == u32::MAX {
+                break;
+            }
+            g = parent;
+        }
+        region.border.push(BorderCorner {
+            corner: corner as u32,
+            owner,
+            chain_start,
+            chain_len: region.chain.len() as u32 - chain_start,
+        });
+    }
+    if !extra.is_empty() {
+        let added = subset(mesh, &extra);
+        region.mesh.append_vertices(&added);
+        region.global.extend_from_slice(&extra);
+    }
+    neighbors.sort_unstable();
+    neighbors.dedup();
+    region.neighbors = neighbors;
+    region.position_of = weld_positions(&region.mesh.mesh().positions).remap;
+}

@@ -1,0 +1,142 @@
+//! Mesh generators and topology checks shared by the integration tests.
+#![allow(dead_code)]
+
+use bevy_aslod::mesh::{IndexedMesh, weld_positions};
+use glam::{Vec2, Vec3};
+use proptest::prelude::*;
+use std::collections::HashMap;
+
+/// Triangles as a sorted list of corner triples (corner order kept).
+pub fn triangle_multiset(indices: &[u32]) -> Vec<[u32; 3]> {
+    let mut tris: Vec<[u32; 3]> = indices
+        .chunks_exact(3)
+        .map(|t| [t[0], t[1], t[2]])
+        .collect();
+    tris.sort_unstable();
+    tris
+}
+
+/// Directed edge counts over positions welded by value.
+pub fn welded_directed_edges(positions: &[Vec3], indices: &[u32]) -> HashMap<(u32, u32), u32> {
+    let weld = weld_positions(positions);
+    let mut edges = HashMap::new();
+    for t in indices.chunks_exact(3) {
+        for k in 0..3 {
+            let a = weld.remap[t[k] as usize];
+            let b = weld.remap[t[(k + 1) % 3] as usize];
+            *edges.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    edges
+}
+
+/// Every edge is used exactly once in each direction: closed, manifold, consistently wound.
+pub fn assert_closed(positions: &[Vec3], indices: &[u32], context: &str) {
+    let edges = welded_directed_edges(positions, indices);
+    for (&(a, b), &n) in &edges {
+        assert_eq!(n, 1, "{context}: edge {a}->{b} used {n} times");
+        assert_eq!(
+            edges.get(&(b, a)),
+            Some(&1),
+            "{context}: edge {a}->{b} has no opposite (a crack or a flip)"
+        );
+    }
+}
+
+pub fn normal(p: &[Vec3], t: &[u32]) -> Vec3 {
+    let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+    (b - a).cross(c - a)
+}
+
+/// A closed UV sphere with radial noise; `seam` splits the vertices along longitude 0 into
+/// two attribute vertices with different UVs, as a texture seam does.
+pub fn sphere(rings: u32, segments: u32, noise: &[f32], seam: bool) -> IndexedMesh {
+    let mut positions = vec![Vec3::Y];
+    let mut uvs = vec![Vec2::new(0.5, 0.0)];
+    let mut noise_at = noise.iter().cycle();
+    let cols = if seam { segments + 1 } else { segments };
+    for r in 1..rings {
+        let phi = std::f32::consts::PI * r as f32 / rings as f32;
+        let mut ring = Vec::new();
+        for s in 0..segments {
+            let theta = std::f32::consts::TAU * s as f32 / segments as f32;
+            let radius = 1.0 + noise_at.next().copied().unwrap_or(0.0);
+            ring.push(
+                Vec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin()) * radius,
+            );
+        }
+        for s in 0..cols {
+            positions.push(ring[(s % segments) as usize]);
+            uvs.push(Vec2::new(
+                s as f32 / segments as f32,
+                r as f32 / rings as f32,
+            ));
+        }
+    }
+    positions.push(-Vec3::Y);
+    uvs.push(Vec2::new(0.5, 1.0));
+    let south = positions.len() as u32 - 1;
+    let at = |r: u32, s: u32| 1 + (r - 1) * cols + if seam { s } else { s % segments };
+    let mut indices = Vec::new();
+    for s in 0..segments {
+        indices.extend_from_slice(&[0, at(1, s + 1), at(1, s)]);
+        indices.extend_from_slice(&[south, at(rings - 1, s), at(rings - 1, s + 1)]);
+    }
+    for r in 1..rings - 1 {
+        for s in 0..segments {
+            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s), at(r + 1, s + 1));
+            indices.extend_from_slice(&[a, b, c, b, d, c]);
+        }
+    }
+    let mut mesh = IndexedMesh::new(positions, indices);
+    mesh.uvs = Some(uvs);
+    mesh
+}
+
+/// An open height field of `w x h` vertices.
+pub fn grid(w: u32, h: u32, heights: &[f32]) -> IndexedMesh {
+    let mut positions = Vec::new();
+    let mut height = heights.iter().cycle();
+    for y in 0..h {
+        for x in 0..w {
+            positions.push(Vec3::new(
+                x as f32,
+                height.next().copied().unwrap_or(0.0),
+                y as f32,
+            ));
+        }
+    }
+    let mut indices = Vec::new();
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let i = y * w + x;
+            indices.extend_from_slice(&[i, i + w, i + 1, i + 1, i + w, i + w + 1]);
+        }
+    }
+    IndexedMesh::new(positions, indices)
+}
+
+/// Welded edges used in one direction only: the open border.
+pub fn border_edges(positions: &[Vec3], indices: &[u32]) -> Vec<(u32, u32)> {
+    let edges = welded_directed_edges(positions, indices);
+    edges
+        .keys()
+        .filter(|&&(a, b)| !edges.contains_key(&(b, a)))
+        .copied()
+        .collect()
+}
+
+/// Random closed or open meshes for the property tests.
+pub fn arb_mesh() -> impl Strategy<Value = (IndexedMesh, bool)> {
+    prop_oneof![
+        (
+            4u32..10,
+            4u32..12,
+            prop::collection::vec(-0.2f32..0.2, 1..40),
+            any::<bool>()
+        )
+            .prop_map(|(r, s, noise, seam)| (sphere(r, s, &noise, seam), true)),
+        (2u32..9, 2u32..9, prop::collection::vec(-1.0f32..1.0, 1..30))
+            .prop_map(|(w, h, heights)| (grid(w, h, &heights), false)),
+    ]
+}

@@ -1,0 +1,222 @@
+//! Regions: partitions, the border rules, and crack-free assembly at any mix of levels.
+
+mod common;
+
+use bevy_aslod::mesh::IndexedMesh;
+use bevy_aslod::multires::BuildOptions;
+use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh, triangle_owner};
+use common::*;
+use glam::Vec3;
+use proptest::prelude::*;
+
+fn build(mesh: &IndexedMesh, partition: &Partition) -> RegionMesh {
+    RegionMesh::build(mesh, partition, &BuildOptions::default()).expect("valid mesh")
+}
+
+/// Every region's triangles, in source-mesh vertex indices.
+fn assemble(mesh: &RegionMesh, caches: &mut RegionCaches) -> Vec<u32> {
+    let mut all = Vec::new();
+    let mut out = Vec::new();
+    for r in 0..mesh.regions().len() {
+        caches.write_global_indices(mesh, r, &mut out);
+        all.extend_from_slice(&out);
+    }
+    all
+}
+
+fn assert_partition_valid(partition: &Partition, vertices: usize) {
+    assert_eq!(
+        partition.region_of().len(),
+        vertices,
+        "one region per vertex"
+    );
+    assert!(partition.region_count() > 0);
+    for (r, &size) in partition.region_sizes().iter().enumerate() {
+        assert!(size > 0, "region {r} is empty");
+    }
+    assert!(
+        partition
+            .region_of()
+            .iter()
+            .all(|&r| (r as usize) < partition.region_count())
+    );
+}
+
+#[test]
+fn triangle_in_three_regions_goes_to_the_smallest_id() {
+    // 0 (region 2) --- 1 (region 0)
+    //   \             /
+    //     2 (region 1)
+    let mesh = IndexedMesh::new(
+        vec![Vec3::ZERO, Vec3::X, Vec3::new(0.5, 1.0, 0.0)],
+        vec![0, 1, 2],
+    );
+    let (partition, _) = Partition::from_ids(&mesh, &[2, 0, 1]).unwrap();
+    let regions = build(&mesh, &partition);
+    assert_eq!(regions.regions()[0].max_triangles(), 1);
+    assert_eq!(regions.regions()[1].max_triangles(), 0);
+    assert_eq!(regions.regions()[2].max_triangles(), 0);
+    assert_eq!(triangle_owner([2, 0, 1]), 0);
+    assert_eq!(triangle_owner([1, 1, 0]), 1);
+}
+
+#[test]
+fn grid_partition_of_a_terrain() {
+    let mesh = grid(13, 13, &[0.0, 0.4, 0.1]);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 2).unwrap();
+    assert_partition_valid(&partition, mesh.vertex_count());
+    assert_eq!(partition.region_count(), 6);
+    // Region ids go row by row: x first.
+    assert_eq!(partition.region_of()[0], 0);
+    assert_eq!(partition.region_of()[12], 2);
+    assert_eq!(partition.region_of()[12 * 13], 3);
+    assert!(Partition::grid(&mesh, GridPlane::XZ, 0, 2).is_err());
+}
+
+#[test]
+fn clusters_are_balanced_and_connected() {
+    let mesh = sphere(24, 32, &[0.0, 0.03], false);
+    let partition = Partition::clusters(&mesh, 8).unwrap();
+    assert_partition_valid(&partition, mesh.vertex_count());
+    assert_eq!(partition.region_count(), 8);
+    let sizes = partition.region_sizes();
+    let (min, max) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
+    assert!(*max <= 2 * *min, "unbalanced: {sizes:?}");
+    // Connected: a flood fill inside each region reaches all of its vertices.
+    let region_of = partition.region_of();
+    let mut adjacent = vec![Vec::new(); mesh.vertex_count()];
+    for t in mesh.indices.chunks_exact(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            if region_of[a] == region_of[b] {
+                adjacent[a].push(b);
+                adjacent[b].push(a);
+            }
+        }
+    }
+    for r in 0..partition.region_count() as u32 {
+        let start = region_of.iter().position(|&x| x == r).unwrap();
+        let mut seen = vec![false; mesh.vertex_count()];
+        let mut stack = vec![start];
+        seen[start] = true;
+        while let Some(v) = stack.pop() {
+            for &n in &adjacent[v] {
+                if !seen[n] {
+                    seen[n] = true;
+                    stack.push(n);
+                }
+            }
+        }
+        let reached = seen.iter().filter(|&&s| s).count();
+        assert_eq!(reached, sizes[r as usize], "region {r} is not connected");
+    }
+}
+
+#[test]
+fn ids_are_compacted_and_seams_follow_their_position() {
+    let mut mesh = sphere(6, 8, &[0.0], true);
+    let mut ids: Vec<u32> = (0..mesh.vertex_count() as u32)
+        .map(|v| 10 + 5 * (v % 3))
+        .collect();
+    ids[1] = 99; // a seam copy disagrees with... itself: vertex 1 is the representative
+    let (partition, _) = Partition::from_ids(&mesh, &ids).unwrap();
+    assert_partition_valid(&partition, mesh.vertex_count());
+    let weld = bevy_aslod::mesh::weld_positions(&mesh.positions);
+    for v in 0..mesh.vertex_count() {
+        assert_eq!(
+            partition.region_of()[v],
+            partition.region_of()[weld.remap[v] as usize],
+            "vertex {v} and its position's first vertex disagree"
+        );
+    }
+    assert!(Partition::from_ids(&mesh, &ids[1..]).is_err());
+    mesh.positions.clear();
+    assert!(Partition::clusters(&mesh, 4).is_err());
+}
+
+#[test]
+fn coarse_region_beside_full_neighbour_stays_closed() {
+    let mesh = sphere(16, 24, &[0.0, 0.04, -0.02, 0.01], false);
+    let partition = Partition::clusters(&mesh, 6).unwrap();
+    let regions = build(&mesh, &partition);
+    let mut caches = RegionCaches::new(&regions);
+    for r in 0..regions.regions().len() {
+        if r % 2 == 0 {
+            caches.set_triangle_count(&regions, r, 0);
+        }
+    }
+    let assembled = assemble(&regions, &mut caches);
+    assert!(assembled.len() < mesh.indices.len());
+    assert_closed(&mesh.positions, &assembled, "alternating levels");
+}
+
+/// Random partitions of a mesh: a grid, clusters, or random ids.
+fn arb_partition(mesh: &IndexedMesh, choice: u8, n: usize, seed: u64) -> Partition {
+    match choice % 3 {
+        0 => Partition::grid(mesh, GridPlane::XZ, 1 + n % 4, 1 + (n / 4) % 3).unwrap(),
+        1 => Partition::clusters(mesh, 1 + n % 9).unwrap(),
+        _ => {
+            let mut state = seed | 1;
+            let ids: Vec<u32> = (0..mesh.vertex_count())
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state % (1 + n as u64 % 5)) as u32
+                })
+                .collect();
+            Partition::from_ids(mesh, &ids).unwrap().0
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(40))]
+
+    #[test]
+    fn any_mix_of_levels_is_crack_free_and_full_detail_is_exact(
+        (mesh, closed) in arb_mesh(),
+        choice in any::<u8>(),
+        n in 0usize..64,
+        seed in any::<u64>(),
+        moves in prop::collection::vec((any::<usize>(), 0.0f64..=1.0), 1..24),
+    ) {
+        let partition = arb_partition(&mesh, choice, n, seed);
+        assert_partition_valid(&partition, mesh.vertex_count());
+        let regions = build(&mesh, &partition);
+        let total: usize = regions.regions().iter().map(|r| r.max_triangles()).sum();
+        prop_assert_eq!(total, mesh.triangle_count(), "every triangle has one owner");
+        let mut caches = RegionCaches::new(&regions);
+        let outline = border_edges(&mesh.positions, &mesh.indices);
+        let on_outline: std::collections::HashSet<u32> =
+            outline.iter().flat_map(|&(a, b)| [a, b]).collect();
+        let weld = bevy_aslod::mesh::weld_positions(&mesh.positions);
+        for (region, f) in moves {
+            let r = region % regions.regions().len();
+            let target = (f * regions.regions()[r].max_triangles() as f64) as usize;
+            caches.set_triangle_count(&regions, r, target);
+            let assembled = assemble(&regions, &mut caches);
+            if closed {
+                assert_closed(&mesh.positions, &assembled, "mixed levels");
+            } else {
+                // No crack inside; the only open edges run along the original border.
+                let edges = welded_directed_edges(&mesh.positions, &assembled);
+                for (&(a, b), &count) in &edges {
+                    prop_assert_eq!(count, 1, "edge {}->{} used twice", a, b);
+                    if !edges.contains_key(&(b, a)) {
+                        prop_assert!(
+                            on_outline.contains(&weld.remap[a as usize])
+                                && on_outline.contains(&weld.remap[b as usize]),
+                            "open edge {}->{} off the original border", a, b
+                        );
+                    }
+                }
+            }
+        }
+        for r in 0..regions.regions().len() {
+            caches.set_triangle_count(&regions, r, usize::MAX);
+        }
+        let assembled = assemble(&regions, &mut caches);
+        prop_assert_eq!(triangle_multiset(&assembled), triangle_multiset(&mesh.indices));
+    }
+}
