@@ -1,6 +1,8 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
+#[cfg(feature = "bevy")]
+pub mod bevy_mesh;
 pub mod budget;
 pub mod distance;
 pub mod mesh;

@@ -1,8 +1,9 @@
 //! `aslod`: build, inspect and compare progressive meshes from the command line.
 
 use bevy_aslod::distance::{Distance, DistanceOptions, MeshRef, mesh_distance};
-use bevy_aslod::mesh::{IndexedMesh, write_obj};
+use bevy_aslod::mesh::{IndexedMesh, write_obj, write_obj_groups};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh, indexed_mesh_bytes};
+use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::{BufWriter, IsTerminal};
@@ -32,6 +33,14 @@ enum Command {
         /// Output OBJ file.
         #[arg(short, long)]
         output: PathBuf,
+        /// Cut the mesh into regions first: `grid:NxM` (over the XZ plane) or `clusters:K`.
+        /// Each region's triangles go into an OBJ group of their own.
+        #[arg(long)]
+        regions: Option<String>,
+        /// Triangle count of each region, in region order (default: `--triangles` spread
+        /// evenly over the regions).
+        #[arg(long, value_delimiter = ',', requires = "regions")]
+        counts: Option<Vec<usize>>,
     },
     /// Compare our progressive mesh with meshoptimizer: build time and error per ratio.
     Compare {
@@ -46,6 +55,10 @@ enum Command {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
+        /// Also measure the cost of partitioning: the same mesh cut into these regions
+        /// (`grid:NxM` or `clusters:K`), each region at the same ratio.
+        #[arg(long)]
+        regions: Option<String>,
     },
     /// Print a mesh's counts, its progressive sequence and its memory use.
     Info {
@@ -60,15 +73,25 @@ fn main() -> ExitCode {
         Command::Extract {
             input,
             triangles,
+            output,
+            regions: Some(spec),
+            error: _,
+            counts,
+        } => extract_regions(&input, &spec, triangles, counts, &output).map(|_| ()),
+        Command::Extract {
+            input,
+            triangles,
             error,
             output,
+            ..
         } => extract(&input, triangles, error, &output),
         Command::Compare {
             input,
             ratios,
             runs,
             json,
-        } => compare(&input, &ratios, runs.max(1), json),
+            regions,
+        } => compare(&input, &ratios, runs.max(1), json, regions.as_deref()),
         Command::Info { input } => info(&input),
     };
     match result {
@@ -106,12 +129,11 @@ fn build(mesh: &IndexedMesh) -> Result<ProgressiveMesh, Box<dyn std::error::Erro
     } else {
         None
     };
-    let pm =
-        ProgressiveMesh::build_with(mesh, &BuildOptions::default(), None, &mut |done, _| {
-            if let Some(bar) = &bar {
-                bar.set_position(done as u64);
-            }
-        })?;
+    let pm = ProgressiveMesh::build_with(mesh, &BuildOptions::default(), None, &mut |done, _| {
+        if let Some(bar) = &bar {
+            bar.set_position(done as u64);
+        }
+    })?;
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
@@ -139,6 +161,72 @@ fn extract(input: &Path, triangles: Option<usize>, error: Option<f32>, output: &
         output.display()
     );
     Ok(())
+}
+
+/// Parses `grid:NxM` or `clusters:K`.
+fn partition(mesh: &IndexedMesh, spec: &str) -> Result<Partition, Box<dyn std::error::Error>> {
+    let bad = || format!("bad --regions {spec:?}: expected grid:NxM or clusters:K");
+    let (kind, arg) = spec.split_once(':').ok_or_else(bad)?;
+    Ok(match kind {
+        "grid" => {
+            let (nx, ny) = arg.split_once('x').ok_or_else(bad)?;
+            Partition::grid(mesh, GridPlane::XZ, nx.parse()?, ny.parse()?)?
+        }
+        "clusters" => Partition::clusters(mesh, arg.parse()?)?,
+        _ => return Err(bad().into()),
+    })
+}
+
+/// Builds the regions, sets each to its count, writes the assembled mesh with one OBJ group
+/// per region, and returns the assembled triangles.
+fn extract_regions(
+    input: &Path,
+    spec: &str,
+    triangles: Option<usize>,
+    counts: Option<Vec<usize>>,
+    output: &Path,
+) -> Result<Vec<u32>, Box<dyn std::error::Error>> {
+    let mesh = load(input)?;
+    let regions = RegionMesh::build(&mesh, &partition(&mesh, spec)?, &BuildOptions::default())?;
+    let k = regions.regions().len();
+    let counts = match (counts, triangles) {
+        (Some(c), _) if c.len() == k => c,
+        (Some(c), _) => {
+            return Err(format!("--counts has {} entries for {k} regions", c.len()).into());
+        }
+        (None, Some(n)) => (0..k).map(|r| n / k + usize::from(r < n % k)).collect(),
+        (None, None) => return Err("give --triangles or --counts".into()),
+    };
+    let (assembled, groups) = assemble(&regions, &counts);
+    let mut out = mesh.clone();
+    out.indices = assembled.clone();
+    let file = std::fs::File::create(output)?;
+    write_obj_groups(&out, &groups, &mut BufWriter::new(file))?;
+    eprintln!(
+        "wrote {} triangles in {k} regions to {}",
+        assembled.len() / 3,
+        output.display()
+    );
+    Ok(assembled)
+}
+
+/// Every region at its count, assembled in source-mesh indices, with a group per region.
+fn assemble(
+    regions: &RegionMesh,
+    counts: &[usize],
+) -> (Vec<u32>, Vec<(String, std::ops::Range<usize>)>) {
+    let mut caches = RegionCaches::new(regions);
+    for (r, &n) in counts.iter().enumerate() {
+        caches.set_triangle_count(regions, r, n);
+    }
+    let (mut all, mut groups, mut part) = (Vec::new(), Vec::new(), Vec::new());
+    for r in 0..regions.regions().len() {
+        let start = all.len() / 3;
+        caches.write_global_indices(regions, r, &mut part);
+        all.extend_from_slice(&part);
+        groups.push((format!("region_{r}"), start..all.len() / 3));
+    }
+    (all, groups)
 }
 
 fn info(input: &Path) -> CliResult {
@@ -216,7 +304,13 @@ struct Row {
     meshopt: Distance,
 }
 
-fn compare(input: &Path, ratios: &[f64], runs: usize, json: bool) -> CliResult {
+fn compare(
+    input: &Path,
+    ratios: &[f64],
+    runs: usize,
+    json: bool,
+    regions_spec: Option<&str>,
+) -> CliResult {
     let mesh = load(input)?;
     let t = mesh.triangle_count();
     let smallest = ratios.iter().copied().fold(1.0f64, f64::min);
@@ -259,6 +353,23 @@ fn compare(input: &Path, ratios: &[f64], runs: usize, json: bool) -> CliResult {
     let source_bytes = indexed_mesh_bytes(&mesh);
     let ours_bytes = pm.memory_bytes();
 
+    // The cost of partitioning: every region at the same ratio, against the whole mesh.
+    let mut partitioned = Vec::new();
+    if let Some(spec) = regions_spec {
+        let regions =
+            RegionMesh::build(&mesh, &partition(&mesh, spec)?, &BuildOptions::default())?;
+        for (row, &ratio) in rows.iter().zip(ratios) {
+            let counts: Vec<usize> = regions
+                .regions()
+                .iter()
+                .map(|r| (ratio * r.max_triangles() as f64).round() as usize)
+                .collect();
+            let (assembled, _) = assemble(&regions, &counts);
+            let d = mesh_distance(original, MeshRef::new(&mesh.positions, &assembled), &options);
+            partitioned.push((assembled.len() / 3, d, row.ours));
+        }
+    }
+
     if json {
         let value = serde_json::json!({
             "input": input.display().to_string(),
@@ -277,6 +388,17 @@ fn compare(input: &Path, ratios: &[f64], runs: usize, json: bool) -> CliResult {
                 "bytes_per_triangle": ours_bytes as f64 / t as f64,
                 "ratio": ours_bytes as f64 / source_bytes as f64,
             },
+            "partitioned": regions_spec.map(|spec| serde_json::json!({
+                "regions": spec,
+                "rows": partitioned.iter().zip(ratios).map(|((n, d, whole), ratio)| serde_json::json!({
+                    "ratio": ratio,
+                    "triangles": n,
+                    "hausdorff": d.hausdorff,
+                    "rms": d.rms,
+                    "hausdorff_vs_whole": d.hausdorff / whole.hausdorff,
+                    "rms_vs_whole": d.rms / whole.rms,
+                })).collect::<Vec<_>>(),
+            })),
             "ratios": rows.iter().map(|r| serde_json::json!({
                 "ratio": r.ratio,
                 "target": r.target,
@@ -339,6 +461,24 @@ fn compare(input: &Path, ratios: &[f64], runs: usize, json: bool) -> CliResult {
             r.ours.hausdorff / r.meshopt.hausdorff,
             r.ours.rms / r.meshopt.rms
         );
+    }
+    if let Some(spec) = regions_spec {
+        println!("partitioned ({spec}), every region at the ratio, against the whole mesh:");
+        println!(
+            "{:>6} {:>8} {:>10} {:>10} | {:>9} {:>9}",
+            "ratio", "tris", "hausdorff", "rms", "H vs one", "RMS vs one"
+        );
+        for ((n, d, whole), ratio) in partitioned.iter().zip(ratios) {
+            println!(
+                "{:>6} {:>8} {:>10.6} {:>10.6} | {:>9.3} {:>9.3}",
+                ratio,
+                n,
+                d.hausdorff,
+                d.rms,
+                d.hausdorff / whole.hausdorff,
+                d.rms / whole.rms
+            );
+        }
     }
     Ok(())
 }
