@@ -843,6 +843,29 @@ fn boxes_behind_the_camera_or_off_screen_have_no_area() {
 }
 
 #[test]
+fn malformed_boxes_do_not_panic() {
+    let scene = perspective_scene(
+        Mat4::perspective_infinite_reverse_rh(1.0, 1.5, 0.1),
+        Projection::InfiniteReverse,
+    );
+    let camera = scene.camera();
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30, -1e30] {
+        for obb in [
+            Obb::new(Vec3::new(0.0, 0.0, bad), Mat3::IDENTITY, Vec3::ONE),
+            Obb::new(Vec3::new(0.0, 0.0, -5.0), Mat3::IDENTITY, Vec3::splat(bad)),
+            Obb::new(
+                Vec3::new(0.0, 0.0, -5.0),
+                Mat3::from_diagonal(Vec3::splat(bad)),
+                Vec3::ONE,
+            ),
+        ] {
+            let area = camera.projected_area(&obb);
+            assert!(area.is_nan() || (0.0..=camera.viewport_area() * 1.0001).contains(&area));
+        }
+    }
+}
+
+#[test]
 fn orthographic_area_does_not_depend_on_distance() {
     for (near, far) in [(0.1, 100.0), (100.0, 0.1)] {
         let projection = Mat4::orthographic_rh(-8.0, 8.0, -4.5, 4.5, near, far);
@@ -1006,12 +1029,14 @@ fn large_allocation_of_100k_regions() {
     assert_eq!(again, out);
 }
 
-fn share(weight: f32, alpha: f32) -> f64 {
-    if alpha.is_infinite() {
+/// `(weight / max_weight)^(1/α)`, with the documented clamp: below 1e-200 it counts as 0.
+fn share_of(weight: f32, max_weight: f32, alpha: f32) -> f64 {
+    let s = if alpha.is_infinite() {
         1.0
     } else {
-        f64::from(weight).powf(1.0 / f64::from(alpha))
-    }
+        (f64::from(weight) / f64::from(max_weight)).powf(1.0 / f64::from(alpha))
+    };
+    if s >= 1e-200 { s } else { 0.0 }
 }
 
 fn arb_weight() -> impl Strategy<Value = f32> {
@@ -1027,6 +1052,7 @@ fn arb_alpha() -> impl Strategy<Value = f32> {
         Just(2.0f32),
         Just(3.0f32),
         Just(f32::INFINITY),
+        Just(0.01f32),
         0.3f32..10.0,
     ]
 }
@@ -1104,9 +1130,11 @@ proptest! {
         let mut out = Vec::new();
         let report = allocate(&AllocationParams { budget, alpha, ..Default::default() }, &regions, &mut out).unwrap();
         prop_assert_eq!(report.total, u64::from(budget));
-        let sum: f64 = weights.iter().map(|&w| share(w, alpha)).sum();
+        let max_weight = weights.iter().fold(0.0f32, |m, &w| m.max(w));
+        let share = |w: f32| share_of(w, max_weight, alpha);
+        let sum: f64 = weights.iter().map(|&w| share(w)).sum();
         for (&w, &p) in weights.iter().zip(&out) {
-            let exact = f64::from(budget) * share(w, alpha) / sum;
+            let exact = f64::from(budget) * share(w) / sum;
             prop_assert!((f64::from(p) - exact).abs() < 1.0 + 1e-9 * exact, "p {} vs {}", p, exact);
         }
     }
@@ -1125,7 +1153,7 @@ proptest! {
         prop_assume!(!report.infeasible && !report.saturated);
         let max_weight = regions.iter().fold(0.0f32, |m, r| m.max(r.weight));
         let s: Vec<f64> = regions.iter().map(|r| {
-            if r.weight > 0.0 { share(r.weight / max_weight, alpha) } else { 0.0 }
+            if r.weight > 0.0 { share_of(r.weight, max_weight, alpha) } else { 0.0 }
         }).collect();
         let free: Vec<usize> = (0..regions.len())
             .filter(|&i| s[i] > 0.0 && out[i] > regions[i].min && out[i] < regions[i].max)
@@ -1211,7 +1239,7 @@ fn reference_targets(regions: &[RegionInput], alpha: f32, available: f64) -> Vec
         .iter()
         .map(|r| {
             if r.weight > 0.0 && r.max > r.min {
-                share(r.weight / max_weight, alpha)
+                share_of(r.weight, max_weight, alpha)
             } else {
                 0.0
             }

@@ -102,10 +102,11 @@ pub struct AllocationReport {
     pub total: u64,
     /// `P' < Σ minᵢ`: every region got its `min`, and the total is over `available`.
     pub infeasible: bool,
-    /// `Σ maxᵢ` (over regions with a weight) fits in `P'`: they all got their `max` and
-    /// `available − total` triangles are left over.
+    /// Every region with a weight fits at its `max` (with the others at their `min`): they all
+    /// got it, and `available − total` triangles are left over.
     pub saturated: bool,
-    /// Regions whose target was clamped up to their `min`, including the weightless ones.
+    /// Regions whose target was clamped up to their `min`, including the weightless ones and
+    /// those with `min == max`.
     pub at_min: usize,
     /// Regions whose target was clamped down to their `max`.
     pub at_max: usize,
@@ -158,6 +159,7 @@ struct Pending {
 /// | `P' < Σ min` | every region at `min`, [`infeasible`](AllocationReport::infeasible) |
 /// | weight `0` | `min`, exempt from hysteresis (out of view, so free to drop at once) |
 /// | `current` outside `[min, max]` | not kept by hysteresis |
+/// | a share `(wᵢ/w_max)^(1/α)` below 1e-200 (α ≪ 1) | treated as weight `0` |
 ///
 /// On error `out` is left empty.
 ///
@@ -571,16 +573,24 @@ fn flag(condition: bool) -> f64 {
 }
 
 /// `shares[i] = f(wᵢ · scale)` for regions with a weight and room between their bounds, else 0.
+///
+/// A share below [`MIN_SHARE`] counts as 0 too: its region's ideal count is below a triangle
+/// for any budget, and `1 / s` must stay finite for the breakpoints.
 #[inline]
 fn fill_shares(shares: &mut Vec<f64>, regions: &[RegionInput], scale: f64, f: impl Fn(f64) -> f64) {
     shares.extend(regions.iter().map(|r| {
         if r.weight > 0.0 && r.max > r.min {
-            f(f64::from(r.weight) * scale)
+            let s = f(f64::from(r.weight) * scale);
+            if s >= MIN_SHARE { s } else { 0.0 }
         } else {
             0.0
         }
     }));
 }
+
+/// The smallest share (relative to the largest, which is 1) that takes part in the split;
+/// below it only an α far under 1 with weights many orders apart can go.
+const MIN_SHARE: f64 = 1e-200;
 
 /// Up to three distinct values inside the bracket at which a round evaluates `g`, ascending.
 #[derive(Clone, Copy, Debug, Default)]

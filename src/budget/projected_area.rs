@@ -166,8 +166,9 @@ pub fn silhouette(code: u8) -> &'static [u8] {
 ///   table apply.
 ///
 /// Everything is in clip space, so any projection matrix with wgpu's depth range `0..=1` works:
-/// `perspective_rh`, Bevy's `perspective_infinite_reverse_rh`, `orthographic_rh` with either
-/// depth direction. The far plane is not clipped.
+/// `perspective_rh`, Bevy's `perspective_infinite_reverse_rh` (also with an oblique near plane,
+/// as Bevy's mirror cameras set), `orthographic_rh` with either depth direction. The far plane
+/// is not clipped.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProjectedAreaCamera {
     /// `clip_from_world`, applied to offsets from `origin`.
@@ -415,15 +416,23 @@ impl ProjectedAreaCamera {
         // sum would round to the centre's magnitude, which for a small box far away is most of
         // the outline's size.
         let (c, a) = (c.as_dvec4(), a.map(Vec4::as_dvec4));
-        let mut polygon = Polygon::new();
-        for &corner in outline {
+        let mut corners = [DVec2::ZERO; 6];
+        for (slot, &corner) in corners.iter_mut().zip(outline) {
             let v = corner_clip(c, &a, corner);
-            polygon.push(v.xy() / v.w);
+            *slot = v.xy() / v.w;
         }
-        if !inside.all() {
+        let corners = &corners[..outline.len()];
+        let area = if inside.all() {
+            shoelace(corners)
+        } else {
+            let mut polygon = Polygon::new();
+            for &p in corners {
+                polygon.push(p);
+            }
             polygon.clip_to_viewport(inside.bitmask());
-        }
-        (polygon.area() * f64::from(self.ndc_to_pixels)) as f32
+            polygon.area()
+        };
+        (area * f64::from(self.ndc_to_pixels)) as f32
     }
 
     /// The NDC area of a box that straddles the near plane: the hull of the projected corners
@@ -497,6 +506,21 @@ fn null_vector(a: DVec4, b: DVec4, c: DVec4) -> DVec4 {
     )
 }
 
+/// The area of a simple polygon by the shoelace formula. The sum runs on offsets from the
+/// first vertex, so a small polygon far from the origin keeps its digits.
+#[inline]
+fn shoelace(p: &[DVec2]) -> f64 {
+    if p.len() < 3 {
+        return 0.0;
+    }
+    let o = p[0];
+    let mut twice = 0.0;
+    for w in p[1..].windows(2) {
+        twice += (w[0] - o).perp_dot(w[1] - o);
+    }
+    (twice * 0.5).abs()
+}
+
 /// A small convex polygon (or point set) in NDC on the stack: at most 14 hull points, grown by
 /// at most one vertex per viewport side when clipped.
 #[derive(Clone, Copy)]
@@ -529,20 +553,9 @@ impl Polygon {
         &self.points[..self.len]
     }
 
-    /// Twice the signed area would lose precision far from the origin, so the shoelace sum runs
-    /// on offsets from the first vertex.
     #[inline]
     fn area(&self) -> f64 {
-        let p = self.as_slice();
-        if p.len() < 3 {
-            return 0.0;
-        }
-        let o = p[0];
-        let mut twice = 0.0;
-        for w in p[1..].windows(2) {
-            twice += (w[0] - o).perp_dot(w[1] - o);
-        }
-        (twice * 0.5).abs()
+        shoelace(self.as_slice())
     }
 
     /// Sutherland–Hodgman against `x ≥ −1`, `x ≤ 1`, `y ≥ −1`, `y ≤ 1`, skipping the sides
@@ -672,6 +685,29 @@ mod tests {
         assert!(
             ProjectedAreaCamera::new(view, Mat4::from_cols_array(&[f32::NAN; 16]), size).is_err()
         );
+    }
+
+    #[test]
+    fn oblique_near_plane_is_honoured() {
+        // Bevy's mirror cameras replace the z row so that reverse-Z's near plane w − z = 0 is
+        // an arbitrary view-space plane C (Lengyel 2005): row z = row w − C.
+        let mut projection = Mat4::perspective_infinite_reverse_rh(1.0, 1.5, 0.1);
+        let plane = Vec4::new(0.4, 0.1, -1.0, -2.0); // C · (x, 1) ≥ 0 is visible
+        let rows = [0, 1, 2, 3].map(|r| projection.row(r));
+        let z_row = rows[3] - plane;
+        projection = Mat4::from_cols(rows[0], rows[1], z_row, rows[3]).transpose();
+        let camera = ProjectedAreaCamera::new(Mat4::IDENTITY, projection, Vec2::ONE).unwrap();
+        for p in [
+            Vec3::new(0.0, 0.0, -1.0),
+            Vec3::new(3.0, 0.0, -3.0),
+            Vec3::new(-3.0, 1.0, -1.0),
+            Vec3::new(0.5, -2.0, -2.5),
+        ] {
+            let ours = camera.near.xyz().dot(p - camera.origin) + camera.near.w;
+            let theirs = plane.dot(p.extend(1.0));
+            assert_eq!(ours >= 0.0, theirs >= 0.0, "{p}: {ours} vs {theirs}");
+            assert!((ours - theirs).abs() < 1e-5 * theirs.abs().max(1.0));
+        }
     }
 
     #[test]

@@ -320,7 +320,16 @@ impl<'a> Builder<'a> {
                 if perp == DVec3::ZERO {
                     continue;
                 }
-                let q = Quadric::from_plane(perp, -perp.dot(a), len_sq.sqrt() * weight);
+                let mut q = Quadric::from_plane(perp, -perp.dot(a), len_sq.sqrt() * weight);
+                // Mixing in the face plane, at the edge's weight but without adding to the
+                // normalising area, stabilises collapses along the border in both directions
+                // (as meshoptimizer does).
+                let face = (b - a).cross(c - a);
+                let area2 = face.length();
+                if area2 > 0.0 {
+                    let n = face / area2;
+                    q.add(&Quadric::from_plane(n, -n.dot(a), area2.sqrt() * weight).without_weight());
+                }
                 self.quadrics[p0 as usize].add(&q);
                 self.quadrics[p1 as usize].add(&q);
             }
@@ -537,14 +546,12 @@ impl<'a> Builder<'a> {
             candidates.push((e, w));
         }
         self.scratch.neighbors = nu;
-        candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let order = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
         let chosen = if validate {
-            candidates
-                .iter()
-                .copied()
-                .find(|&(_, w)| self.is_valid(u, w))
+            candidates.sort_unstable_by(order);
+            candidates.iter().copied().find(|&(_, w)| self.is_valid(u, w))
         } else {
-            candidates.first().copied()
+            candidates.iter().copied().min_by(order)
         };
         if let Some((cost, w)) = chosen {
             self.target[u as usize] = w;

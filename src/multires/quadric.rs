@@ -40,6 +40,13 @@ impl Quadric {
         }
     }
 
+    /// The same planes, contributing nothing to the normalising weight.
+    #[inline]
+    pub(crate) fn without_weight(mut self) -> Self {
+        self.weight = 0.0;
+        self
+    }
+
     /// Adds `other` to `self`.
     #[inline]
     pub(crate) fn add(&mut self, other: &Self) {
