@@ -220,3 +220,93 @@ proptest! {
         prop_assert_eq!(triangle_multiset(&assembled), triangle_multiset(&mesh.indices));
     }
 }
+
+/// A two-triangle glTF whose vertices carry `attribute` (SCALAR u16 for `_REGION`, VEC3 float
+/// for `COLOR_0`), written to a temporary file.
+fn painted_gltf(attribute: &str) -> std::path::PathBuf {
+    let positions: [[f32; 3]; 4] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ];
+    let indices: [u16; 6] = [0, 1, 2, 0, 2, 3];
+    let mut bytes: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    bytes.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    let (accessor, view_len) = if attribute == "_REGION" {
+        bytes.extend([7u16, 7, 9, 9].iter().flat_map(|i| i.to_le_bytes()));
+        (
+            r#"{"bufferView":2,"componentType":5123,"count":4,"type":"SCALAR"}"#,
+            8,
+        )
+    } else {
+        let colours: [[f32; 3]; 4] = [
+            [1.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+        ];
+        bytes.extend(colours.iter().flatten().flat_map(|f| f.to_le_bytes()));
+        (
+            r#"{"bufferView":2,"componentType":5126,"count":4,"type":"VEC3"}"#,
+            48,
+        )
+    };
+    let uri = base64(&bytes);
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"{attribute}":2}},"indices":1}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+          {{"bufferView":1,"componentType":5123,"count":6,"type":"SCALAR"}},{accessor}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":12}},
+          {{"buffer":0,"byteOffset":60,"byteLength":{view_len}}}],
+        "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{uri}"}}]}}"#,
+        bytes.len()
+    );
+    let path = std::env::temp_dir().join(format!("aslod_painted{attribute}.gltf"));
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+#[test]
+fn painted_regions_are_read_from_gltf() {
+    for attribute in ["_REGION", "COLOR_0"] {
+        let import = bevy_aslod::mesh::load_gltf(&painted_gltf(attribute)).unwrap();
+        let ids = import.region_ids.expect("painted ids");
+        assert_eq!(ids[0], ids[1], "{attribute}");
+        assert_eq!(ids[2], ids[3], "{attribute}");
+        assert_ne!(ids[0], ids[2], "{attribute}");
+        let (partition, _) = Partition::from_ids(&import.mesh, &ids).unwrap();
+        assert_eq!(partition.region_count(), 2, "{attribute}");
+        let r = partition.region_of();
+        assert!(
+            r[0] == r[1] && r[2] == r[3] && r[0] != r[2],
+            "{attribute}: {r:?}"
+        );
+    }
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(ABC[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}

@@ -45,6 +45,12 @@ pub struct GltfImport {
     pub skins: Vec<GltfSkinInfo>,
     /// What [`IndexedMesh::validate`] dropped from the flattened mesh.
     pub report: ValidationReport,
+    /// A region id per vertex, when the file paints regions (ASLOD's artists painted them with
+    /// vertex colours): the custom attribute `_REGION` (integer or float scalar), or else
+    /// `COLOR_0` quantised to 8 bits per channel (RGB packed into one id, so each distinct
+    /// colour is one region). Vertices of primitives without either get `u32::MAX`. Feed the
+    /// ids to `regions::Partition::from_ids`, which renumbers them.
+    pub region_ids: Option<Vec<u32>>,
 }
 
 /// A glTF skin: the joints that deform a skinned mesh.
@@ -589,6 +595,7 @@ fn semantic_name(semantic: &Semantic) -> &'static str {
         Semantic::TexCoords(n) => set(TEXCOORD, n, "TEXCOORD_n"),
         Semantic::Joints(n) => set(JOINTS, n, "JOINTS_n"),
         Semantic::Weights(n) => set(WEIGHTS, n, "WEIGHTS_n"),
+        Semantic::Extras(_) => "_custom",
     }
 }
 
@@ -716,6 +723,8 @@ struct Builder {
     uvs: Vec<Vec2>,
     joints: Vec<[u16; 4]>,
     weights: Vec<[f32; 4]>,
+    region_ids: Vec<u32>,
+    any_region_ids: bool,
     /// Which attributes some, and which all, primitives had.
     any_normals: bool,
     all_normals: bool,
@@ -754,6 +763,8 @@ impl Builder {
             uvs: Vec::new(),
             joints: Vec::new(),
             weights: Vec::new(),
+            region_ids: Vec::new(),
+            any_region_ids: false,
             any_normals: false,
             all_normals: true,
             any_uvs: false,
@@ -903,6 +914,13 @@ impl Builder {
             None => self.joints.resize(base + vertex_count, [0; 4]),
         }
 
+        let ids = read_region_ids(data, primitive, &at)?;
+        self.any_region_ids |= ids.is_some();
+        match ids {
+            Some(ids) => self.region_ids.extend_from_slice(&ids),
+            None => self.region_ids.resize(base + vertex_count, u32::MAX),
+        }
+
         let flip = det < 0.0;
         self.mesh.indices.reserve(triangles.len() * 3);
         for [a, b, c] in triangles {
@@ -969,8 +987,58 @@ impl Builder {
             morph_target_primitives: self.morph_target_primitives,
             skins,
             report: ValidationReport::default(),
+            region_ids: self.any_region_ids.then_some(self.region_ids),
         }
     }
+}
+
+/// A primitive's painted region ids: `_REGION`, or `COLOR_0` quantised (see
+/// [`GltfImport::region_ids`]).
+fn read_region_ids(
+    data: &Data<'_>,
+    primitive: &Primitive<'_>,
+    at: &str,
+) -> MeshResult<Option<Vec<u32>>> {
+    if let Some(a) = primitive.get(&Semantic::Extras("REGION".to_string())) {
+        let what = format!("{at}.attributes._REGION");
+        let ids = if a.data_type() == DataType::F32 {
+            data.read_floats::<1>(&a, &what)?
+                .into_iter()
+                .map(|[x]| {
+                    if x.is_finite() && x >= 0.0 {
+                        x.round() as u32
+                    } else {
+                        u32::MAX
+                    }
+                })
+                .collect()
+        } else {
+            let allowed = [DataType::U8, DataType::U16, DataType::U32];
+            data.read_uints::<1>(&a, &what, &allowed)?
+                .into_iter()
+                .map(|[x]| x)
+                .collect()
+        };
+        return Ok(Some(ids));
+    }
+    let Some(a) = primitive.get(&Semantic::Colors(0)) else {
+        return Ok(None);
+    };
+    let what = format!("{at}.attributes.COLOR_0");
+    let quantise = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round() as u32;
+    let pack = |r: f32, g: f32, b: f32| quantise(r) << 16 | quantise(g) << 8 | quantise(b);
+    let ids = if a.dimensions().multiplicity() == 3 {
+        data.read_floats::<3>(&a, &what)?
+            .into_iter()
+            .map(|[r, g, b]| pack(r, g, b))
+            .collect()
+    } else {
+        data.read_floats::<4>(&a, &what)?
+            .into_iter()
+            .map(|[r, g, b, _]| pack(r, g, b))
+            .collect()
+    };
+    Ok(Some(ids))
 }
 
 /// Turns a primitive's index list into triangles (`TRIANGLES`, `TRIANGLE_STRIP` or
