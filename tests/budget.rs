@@ -219,6 +219,91 @@ fn fit_obb_degenerate_inputs() {
 }
 
 #[test]
+fn fit_obb_survives_awkward_point_sets() {
+    let mut rng = Rng(11);
+    for round in 0..40 {
+        let rotation = rng.rotation();
+        let mut points = Vec::new();
+        match round % 4 {
+            // A regular grid on a box's surface: many exactly coplanar and collinear points.
+            0 => {
+                for i in 0..=8 {
+                    for j in 0..=8 {
+                        let (u, v) = (i as f32 / 4.0 - 1.0, j as f32 / 4.0 - 1.0);
+                        for face in [
+                            Vec3::new(u, v, 1.0),
+                            Vec3::new(u, v, -1.0),
+                            Vec3::new(u, 1.0, v),
+                            Vec3::new(u, -1.0, v),
+                            Vec3::new(1.0, u, v),
+                            Vec3::new(-1.0, u, v),
+                        ] {
+                            points.push(rotation * (face * Vec3::new(3.0, 2.0, 1.0)));
+                        }
+                    }
+                }
+            }
+            // Points on a sphere, each three times.
+            1 => {
+                for _ in 0..300 {
+                    let p = rng.unit_vec3() * 5.0;
+                    points.extend([p, p, p]);
+                }
+            }
+            // A thin sliver: almost flat.
+            2 => {
+                for _ in 0..500 {
+                    let p = Vec3::new(
+                        rng.range(-4.0, 4.0),
+                        rng.range(-1.0, 1.0),
+                        rng.range(-1e-6, 1e-6),
+                    );
+                    points.push(rotation * p + Vec3::splat(1000.0));
+                }
+            }
+            // A few points only.
+            _ => {
+                for _ in 0..4 + round % 5 {
+                    points.push(rng.vec3(-1.0, 1.0));
+                }
+            }
+        }
+        let ours = fit_obb(&points).unwrap();
+        assert!(ours.is_finite(), "round {round}");
+        assert_contains(&ours, &points, "awkward");
+        if round % 4 == 2 {
+            // At 1000 units from the origin f32 resolves 6e-5, so the sliver's thickness is
+            // rounding noise and volumes cannot be compared; its rectangle can.
+            let mut h = ours.half_extents.to_array();
+            h.sort_by(f32::total_cmp);
+            assert!(h[0] < 2e-4, "round {round}: {h:?}");
+            assert!(
+                (h[1] - 1.0).abs() < 0.02 && (h[2] - 4.0).abs() < 0.05,
+                "round {round}: {h:?}"
+            );
+            continue;
+        }
+        let pca = fit_obb_pca(&points).unwrap();
+        let aabb = fit_aabb(&points).unwrap();
+        assert!(
+            ours.volume() <= pca.volume() * 1.0001 + 1e-6,
+            "round {round}: ours vs PCA"
+        );
+        assert!(
+            ours.volume() <= aabb.volume() * 1.0001 + 1e-6,
+            "round {round}: ours vs AABB"
+        );
+        if round % 4 == 0 {
+            assert!(
+                (ours.volume() / 48.0 - 1.0).abs() < 1e-3,
+                "round {round}: {}",
+                ours.volume()
+            );
+        }
+    }
+}
+
+#[test]
 fn transformed_obb_contains_the_transformed_points() {
     let mut rng = Rng(9);
     for _ in 0..100 {
@@ -662,7 +747,10 @@ fn random_box(rng: &mut Rng, scene: &Scene, near: f32) -> Obb {
 #[derive(Default, Debug)]
 struct ErrorStats {
     count: usize,
-    nonzero: usize,
+    /// Cases whose reference area is over 0.1 % of the viewport.
+    sizable: usize,
+    /// Cases that passed only thanks to the absolute floor (error above 1e-4 relative).
+    needed_floor: usize,
     worst_relative: f64,
     worst_absolute_pixels: f64,
 }
@@ -680,9 +768,9 @@ fn projected_area_matches_brute_force_on_100k_random_boxes() {
         let side = scene.side(&obb);
         let viewport_area = f64::from(scene.viewport.x * scene.viewport.y);
         let error = (fast - reference).abs();
-        // 1e-4 relative; an absolute floor of 1e-6 of the viewport for the slivers where the
-        // relative error of a vanishing area means nothing.
-        let allowed = 1e-4 * reference + 1e-6 * viewport_area;
+        // 1e-4 relative, with a floor of 1e-9 of the viewport only so that a reference of
+        // exactly zero tolerates a rounding residue (none occurs: `needed_floor` stays 0).
+        let allowed = 1e-4 * reference + 1e-9 * viewport_area;
         assert!(
             error <= allowed && fast.is_finite(),
             "case {case} ({side:?}, {:?}): fast {fast}, reference {reference}\n{scene:?}\n{obb:?}",
@@ -690,8 +778,9 @@ fn projected_area_matches_brute_force_on_100k_random_boxes() {
         );
         let s = &mut stats[side as usize];
         s.count += 1;
+        s.needed_floor += usize::from(error > 1e-4 * reference);
         if reference > 1e-3 * viewport_area {
-            s.nonzero += 1;
+            s.sizable += 1;
             s.worst_relative = s.worst_relative.max(error / reference);
         }
         s.worst_absolute_pixels = s.worst_absolute_pixels.max(error);
@@ -701,15 +790,10 @@ fn projected_area_matches_brute_force_on_100k_random_boxes() {
     for s in &stats {
         assert!(s.count > 1000, "every situation is exercised: {stats:?}");
     }
-    // Where the box is in front of the camera and not vanishing, 1e-4 relative holds outright.
-    assert!(
-        stats[Side::Front as usize].worst_relative <= 1e-4,
-        "{stats:?}"
-    );
-    assert!(
-        stats[Side::Straddling as usize].worst_relative <= 1e-4,
-        "{stats:?}"
-    );
+    // In practice the agreement is to the f32 rounding of the result, and the floor is unused.
+    for s in &stats {
+        assert!(s.worst_relative <= 1e-6 && s.needed_floor == 0, "{stats:?}");
+    }
 }
 
 fn perspective_scene(projection: Mat4, kind: Projection) -> Scene {

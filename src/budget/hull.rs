@@ -2,9 +2,9 @@
 //! monotone chain (Andrew 1979), both in `f64`.
 //!
 //! The 3D hull only feeds [`fit_obb`](super::fit_obb) with candidate directions (its face
-//! normals) and a reduced point set (its vertices), so it favours never failing over exactness:
-//! points within `eps` of a face count as inside, and a topology it cannot continue returns
-//! [`Hull3::Failed`], on which the caller falls back to the full point set.
+//! normals), a reduced point set (its vertices) and silhouettes, so it favours never failing
+//! over exactness: points within `eps` of a face count as inside, and a topology it cannot
+//! continue returns [`Hull3::Failed`], on which the caller falls back to the full point set.
 
 use glam::{DVec2, DVec3};
 use std::collections::HashMap;

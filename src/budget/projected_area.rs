@@ -401,7 +401,6 @@ impl ProjectedAreaCamera {
         if near_c - near_r < 0.0 {
             return (self.straddling_area(obb) * f64::from(self.ndc_to_pixels)) as f32;
         }
-        let inside = (sides_c - sides_r).cmpge(Vec4::ZERO);
 
         // The eye in the box's frame, against the faces: the 1999 method.
         let e = self.eye;
@@ -412,10 +411,14 @@ impl ProjectedAreaCamera {
         let above = SPREAD[local.cmpgt(bound).bitmask() as usize];
         let outline = silhouette(below | (above << 1));
 
-        // The corners in f64: they are the centre plus or minus the half axes, and in f32 the
-        // sum would round to the centre's magnitude, which for a small box far away is most of
-        // the outline's size.
-        let (c, a) = (c.as_dvec4(), a.map(Vec4::as_dvec4));
+        // The box in clip space again, in f64, now that it is known to matter. In f32 the
+        // corners (centre ± half axes) round to the centre's magnitude, most of the outline's
+        // size for a small box far away, and the clipped sliver of a box at the viewport's edge
+        // moves with every rounding of its position.
+        let (c, a) = self.clip_box_f64(obb);
+        let sides = |v: DVec4| DVec4::splat(v.w) + DVec4::new(v.x, -v.x, v.y, -v.y);
+        let sides_r = sides(a[0]).abs() + sides(a[1]).abs() + sides(a[2]).abs();
+        let inside = (sides(c) - sides_r).cmpge(DVec4::ZERO);
         let mut corners = [DVec2::ZERO; 6];
         for (slot, &corner) in corners.iter_mut().zip(outline) {
             let v = corner_clip(c, &a, corner);
@@ -435,21 +438,34 @@ impl ProjectedAreaCamera {
         (area * f64::from(self.ndc_to_pixels)) as f32
     }
 
+    /// The box's centre and half axes in clip space, in `f64`.
+    #[inline]
+    fn clip_box_f64(&self, obb: &Obb) -> (DVec4, [DVec4; 3]) {
+        let m = self.clip_from_world_f64;
+        let h = obb.half_extents.as_dvec3();
+        let offset = obb.center.as_dvec3() - self.origin.as_dvec3();
+        let c = m * offset.extend(0.0) + self.origin_clip_f64;
+        let a = [
+            m * (obb.axes.x_axis.as_dvec3() * h.x).extend(0.0),
+            m * (obb.axes.y_axis.as_dvec3() * h.y).extend(0.0),
+            m * (obb.axes.z_axis.as_dvec3() * h.z).extend(0.0),
+        ];
+        (c, a)
+    }
+
     /// The NDC area of a box that straddles the near plane: the hull of the projected corners
     /// in front of it and of the points where its edges cross it. All in `f64`: the cut can
     /// run close to the eye, where `f32` loses the digits that matter.
     #[cold]
     fn straddling_area(&self, obb: &Obb) -> f64 {
-        let m = self.clip_from_world_f64;
+        let (c, a) = self.clip_box_f64(obb);
         let h = obb.half_extents.as_dvec3();
         let offset = obb.center.as_dvec3() - self.origin.as_dvec3();
-        let c = m * offset.extend(0.0) + self.origin_clip_f64;
         let axes = [
             obb.axes.x_axis.as_dvec3() * h.x,
             obb.axes.y_axis.as_dvec3() * h.y,
             obb.axes.z_axis.as_dvec3() * h.z,
         ];
-        let a = axes.map(|v| m * v.extend(0.0));
         let n = self.near_f64.xyz();
         let near_c = n.dot(offset) + self.near_f64.w;
         let near_a = axes.map(|v| n.dot(v));

@@ -261,7 +261,7 @@ impl RegionMesh {
         }
 
         // Build every region, in parallel where there are cores.
-        let built: Vec<Result<(Region, Vec<(u32, u32, u32)>), RegionError>> = {
+        let built: Vec<Result<BuiltRegion, RegionError>> = {
             let work: Vec<usize> = (0..count).collect();
             let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
             let chunk = count.div_ceil(threads.max(1)).max(1);
@@ -354,6 +354,9 @@ impl RegionMesh {
     }
 }
 
+/// A built region, and its vertex moves `(step, old, new)` in local indices.
+type BuiltRegion = (Region, Vec<(u32, u32, u32)>);
+
 /// Builds one region's sequence over its owned triangles, with context triangles around its
 /// vertices, and returns the vertex moves in local indices.
 fn build_region(
@@ -363,7 +366,7 @@ fn build_region(
     owned: &[u32],
     context: &[u32],
     options: &BuildOptions,
-) -> Result<(Region, Vec<(u32, u32, u32)>), RegionError> {
+) -> Result<BuiltRegion, RegionError> {
     // Local vertex table: own vertices first (by global id), then foreign ones.
     let mut global: Vec<u32> = owned
         .iter()
