@@ -21,7 +21,10 @@ pub fn to_bevy_mesh(mesh: &IndexedMesh, indices: &[u32]) -> Mesh {
     )
     .with_inserted_attribute(
         Mesh::ATTRIBUTE_POSITION,
-        mesh.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        mesh.positions
+            .iter()
+            .map(|p| p.to_array())
+            .collect::<Vec<_>>(),
     );
     if let Some(normals) = &mesh.normals {
         out.insert_attribute(

@@ -356,8 +356,7 @@ fn compare(
     // The cost of partitioning: every region at the same ratio, against the whole mesh.
     let mut partitioned = Vec::new();
     if let Some(spec) = regions_spec {
-        let regions =
-            RegionMesh::build(&mesh, &partition(&mesh, spec)?, &BuildOptions::default())?;
+        let regions = RegionMesh::build(&mesh, &partition(&mesh, spec)?, &BuildOptions::default())?;
         for (row, &ratio) in rows.iter().zip(ratios) {
             let counts: Vec<usize> = regions
                 .regions()
@@ -365,7 +364,11 @@ fn compare(
                 .map(|r| (ratio * r.max_triangles() as f64).round() as usize)
                 .collect();
             let (assembled, _) = assemble(&regions, &counts);
-            let d = mesh_distance(original, MeshRef::new(&mesh.positions, &assembled), &options);
+            let d = mesh_distance(
+                original,
+                MeshRef::new(&mesh.positions, &assembled),
+                &options,
+            );
             partitioned.push((assembled.len() / 3, d, row.ours));
         }
     }

@@ -328,7 +328,9 @@ impl<'a> Builder<'a> {
                 let area2 = face.length();
                 if area2 > 0.0 {
                     let n = face / area2;
-                    q.add(&Quadric::from_plane(n, -n.dot(a), area2.sqrt() * weight).without_weight());
+                    q.add(
+                        &Quadric::from_plane(n, -n.dot(a), area2.sqrt() * weight).without_weight(),
+                    );
                 }
                 self.quadrics[p0 as usize].add(&q);
                 self.quadrics[p1 as usize].add(&q);
@@ -549,7 +551,10 @@ impl<'a> Builder<'a> {
         let order = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
         let chosen = if validate {
             candidates.sort_unstable_by(order);
-            candidates.iter().copied().find(|&(_, w)| self.is_valid(u, w))
+            candidates
+                .iter()
+                .copied()
+                .find(|&(_, w)| self.is_valid(u, w))
         } else {
             candidates.iter().copied().min_by(order)
         };
