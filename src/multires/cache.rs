@@ -119,13 +119,37 @@ impl PolygonCache {
     ///
     /// The cost is proportional to the number of levels crossed.
     pub fn set_triangle_count(&mut self, mesh: &ProgressiveMesh, triangles: usize) -> usize {
-        while self.triangles > triangles && self.coarsen(mesh) {}
-        while self.level > 0
-            && self.triangles + mesh.steps[self.level - 1].removed as usize <= triangles
-        {
-            self.refine(mesh);
+        // The walk keeps its cursors in locals: one step is a handful of stores.
+        let (steps, corners, pairs) = (&mesh.steps[..], &mesh.corners[..], &mesh.pairs[..]);
+        let indices = &mut self.indices[..];
+        let (mut level, mut count) = (self.level, self.triangles);
+        let (mut cc, mut pc) = (self.corner_cursor, self.pair_cursor);
+        while count > triangles && level < steps.len() {
+            let step = steps[level];
+            let (nc, np) = (step.corners as usize, step.pairs as usize);
+            let pair = &pairs[pc..pc + np];
+            for &c in &corners[cc..cc + nc] {
+                indices[(c >> 1) as usize] = pair[(c & 1) as usize][1];
+            }
+            (cc, pc) = (cc + nc, pc + np);
+            count -= step.removed as usize;
+            level += 1;
         }
-        self.triangles
+        while level > 0 && count + steps[level - 1].removed as usize <= triangles {
+            let step = steps[level - 1];
+            let (nc, np) = (step.corners as usize, step.pairs as usize);
+            (cc, pc) = (cc - nc, pc - np);
+            let pair = &pairs[pc..pc + np];
+            for &c in &corners[cc..cc + nc] {
+                indices[(c >> 1) as usize] = pair[(c & 1) as usize][0];
+            }
+            count += step.removed as usize;
+            level -= 1;
+        }
+        self.changed |= level != self.level;
+        (self.level, self.triangles) = (level, count);
+        (self.corner_cursor, self.pair_cursor) = (cc, pc);
+        count
     }
 
     /// Moves to `level` (clamped to the base level) and returns the triangle count reached.
