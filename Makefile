@@ -17,8 +17,16 @@ deps:
 		DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 
+# The Silvretta terrain (ASLOD Figure 8): in a window when there is a display, otherwise
+# rendered offscreen through lavapipe into out/silvretta (PNGs and per-region counts).
 demo: deps
-	$(CARGO) run --release --bin aslod -- compare $(TESTDATA)/meshes/stanford-bunny.obj
+	@if [ -n "$$DISPLAY$$WAYLAND_DISPLAY" ]; then \
+		$(CARGO) run --example silvretta; \
+	else \
+		echo "no display: rendering headless into out/silvretta"; \
+		xvfb-run -a $(CARGO) run --example silvretta -- --headless --frames 10 --screenshot out/silvretta && \
+		cat out/silvretta/counts.json; \
+	fi
 
 test: deps
 	$(CARGO) test --no-default-features --lib --tests

@@ -7,10 +7,18 @@ pub mod budget;
 pub mod distance;
 pub mod mesh;
 pub mod multires;
+#[cfg(feature = "bevy")]
+pub mod plugin;
 pub mod regions;
 
 /// The types most users need.
 pub mod prelude {
     pub use crate::mesh::{IndexedMesh, MeshError};
     pub use crate::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+    #[cfg(feature = "bevy")]
+    pub use crate::plugin::{
+        AslodOverlay, AslodPlugin, AslodStats, AslodSystems, AslodViewport, CountInBudget,
+        LodPriority, LodRegion, MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec,
+        PolygonBudget,
+    };
 }

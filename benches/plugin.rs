@@ -1,0 +1,165 @@
+//! The plugin's per-frame CPU cost without rendering: 1,000 models × 16 regions under
+//! P = 1,000,000, the camera moving. Prints a table of Allocate and SelectLod + Upload times.
+//!
+//! `cargo bench --bench plugin`
+
+use bevy::prelude::*;
+use bevy_aslod::mesh::IndexedMesh;
+use bevy_aslod::plugin::{AslodPlugin, AslodStats, AslodViewport, MultiresMesh, MultiresModel};
+use bevy_aslod::regions::{GridPlane, Partition};
+use std::time::Instant;
+
+const MODELS: usize = 1_000;
+const BUDGET: u32 = 1_000_000;
+const WARMUP: usize = 10;
+const FRAMES: usize = 120;
+
+/// A bumpy `n`×`n`-vertex patch, 16 units wide.
+fn patch(n: u32) -> IndexedMesh {
+    let mut positions = Vec::new();
+    for z in 0..n {
+        for x in 0..n {
+            let (fx, fz) = (x as f32, z as f32);
+            let y = ((fx * 0.7).sin() * (fz * 0.9).cos() + (fx * 0.31 + fz * 0.17).sin()) * 0.6;
+            let s = 16.0 / (n - 1) as f32;
+            positions.push(Vec3::new(fx * s - 8.0, y, fz * s - 8.0));
+        }
+    }
+    let mut indices = Vec::new();
+    for z in 0..n - 1 {
+        for x in 0..n - 1 {
+            let i = z * n + x;
+            indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
+        }
+    }
+    IndexedMesh::new(positions, indices)
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+fn main() {
+    // ε = 0 follows every target; ε = 8 lets regions keep their level through small changes.
+    for hysteresis in [0, 8] {
+        run(hysteresis);
+        println!();
+    }
+}
+
+/// One run: build the scene, fly the camera, print the table.
+fn run(hysteresis: u32) {
+    let mesh = patch(33);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
+    let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
+    let regions = asset.region_count();
+
+    let mut app = App::new();
+    app.add_plugins((MinimalPlugins, AssetPlugin::default(), TransformPlugin))
+        .init_asset::<Mesh>()
+        .init_asset::<StandardMaterial>()
+        .add_plugins(
+            AslodPlugin::default()
+                .with_budget(BUDGET)
+                .with_hysteresis(hysteresis),
+        )
+        .insert_resource(AslodViewport(Vec2::new(1920.0, 1080.0)));
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(asset);
+    let material = app
+        .world_mut()
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::default());
+    let side = (MODELS as f32).sqrt().ceil() as usize;
+    for i in 0..MODELS {
+        let (x, z) = ((i % side) as f32 * 20.0, (i / side) as f32 * 20.0);
+        app.world_mut().spawn((
+            MultiresModel(handle.clone()),
+            MeshMaterial3d(material.clone()),
+            Transform::from_xyz(x, 0.0, z),
+        ));
+    }
+    let extent = side as f32 * 20.0;
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            Projection::Perspective(PerspectiveProjection {
+                aspect_ratio: 16.0 / 9.0,
+                ..default()
+            }),
+            Transform::default(),
+        ))
+        .id();
+
+    let mut allocate = Vec::new();
+    let mut update = Vec::new();
+    let mut frame_total = Vec::new();
+    let mut frame_wall = Vec::new();
+    let mut changed = 0usize;
+    let mut max_triangles = 0u64;
+    for frame in 0..WARMUP + FRAMES {
+        let t = frame as f32 / (WARMUP + FRAMES) as f32;
+        // Sweep along the front of the grid, high up, looking into it.
+        let at = Vec3::new(t * extent, 120.0, -60.0 + (t * 6.0).sin() * 20.0);
+        *app.world_mut()
+            .get_mut::<Transform>(camera)
+            .expect("camera") =
+            Transform::from_translation(at).looking_at(at + Vec3::new(10.0, -60.0, 100.0), Vec3::Y);
+        let start = Instant::now();
+        app.update();
+        let wall = start.elapsed().as_secs_f64() * 1e3;
+        let stats = *app.world().resource::<AslodStats>();
+        assert!(
+            stats.triangles <= u64::from(BUDGET),
+            "over budget: {stats:?}"
+        );
+        if frame >= WARMUP {
+            allocate.push(stats.allocation_ms);
+            update.push(stats.update_ms);
+            frame_total.push(stats.allocation_ms + stats.update_ms);
+            changed += stats.regions_changed;
+            max_triangles = max_triangles.max(stats.triangles);
+            frame_wall.push(wall);
+        }
+    }
+    for v in [
+        &mut allocate,
+        &mut update,
+        &mut frame_total,
+        &mut frame_wall,
+    ] {
+        v.sort_by(f64::total_cmp);
+    }
+    println!(
+        "bevy_aslod plugin: {MODELS} models x {regions} regions = {} region instances, P = {BUDGET}, hysteresis {hysteresis}, {FRAMES} frames",
+        MODELS * regions
+    );
+    println!("| step | median ms | p90 ms | max ms |");
+    println!("|---|---:|---:|---:|");
+    for (name, v) in [
+        ("Allocate", &allocate),
+        ("SelectLod + Upload", &update),
+        ("Allocate + SelectLod + Upload", &frame_total),
+        ("whole app.update() (MinimalPlugins)", &frame_wall),
+    ] {
+        println!(
+            "| {name} | {:.3} | {:.3} | {:.3} |",
+            percentile(v, 0.5),
+            percentile(v, 0.9),
+            v[v.len() - 1]
+        );
+    }
+    println!(
+        "regions changed per frame (mean): {:.0}; most triangles in a frame: {max_triangles} (full detail: {})",
+        changed as f64 / FRAMES as f64,
+        MODELS * 2 * 32 * 32
+    );
+    let median = percentile(&frame_total, 0.5);
+    println!(
+        "target <= 2 ms per frame: {}",
+        if median <= 2.0 { "met" } else { "NOT met" }
+    );
+}

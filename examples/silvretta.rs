@@ -1,0 +1,617 @@
+//! ASLOD Figure 8: a 261×261 fractal terrain cut into 6×6 regions under a 10,000-triangle budget.
+//!
+//! Controls: WASD to fly, Q/E down/up, Shift faster, drag with the left mouse button to look;
+//! `1` the corner view, `2` the top view, `O` the region-box overlay, `R` shading by region
+//! (red: as many triangles as the busiest region, blue: few).
+//!
+//! `--headless --frames N --screenshot DIR` renders offscreen (a camera with an `Image` render
+//! target, no window), waits N frames per shot, and writes `corner.png`, `corner_regions.png`,
+//! `top.png`, `top_regions.png` and `counts.json` to `DIR`.
+
+use bevy::app::ScheduleRunnerPlugin;
+use bevy::camera::RenderTarget;
+use bevy::input::mouse::AccumulatedMouseMotion;
+use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy_aslod::mesh::IndexedMesh;
+use bevy_aslod::plugin::{
+    AslodOverlay, AslodPlugin, AslodStats, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
+};
+use bevy_aslod::regions::{GridPlane, Partition};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Vertices along each side of the terrain: 260² quads, 135,200 triangles.
+const SIDE: u32 = 261;
+/// World units between neighbouring vertices.
+const SPACING: f32 = 1.0;
+/// Peak height of the ridges.
+const HEIGHT: f32 = 45.0;
+/// The noise seed: the same terrain on every run.
+const SEED: u32 = 0x5117_2e77;
+/// The paper's budget for this figure.
+const BUDGET: u32 = 10_000;
+/// Offscreen image size.
+const SHOT_SIZE: (u32, u32) = (960, 540);
+
+fn main() {
+    let args = match Args::parse(std::env::args().skip(1)) {
+        Ok(args) => args,
+        Err(e) => {
+            eprintln!(
+                "silvretta: {e}\nusage: silvretta [--headless] [--frames N] [--screenshot DIR]"
+            );
+            std::process::exit(2);
+        }
+    };
+    let mut app = App::new();
+    if args.headless {
+        app.add_plugins((
+            DefaultPlugins
+                .set(WindowPlugin {
+                    primary_window: None,
+                    exit_condition: ExitCondition::DontExit,
+                    ..default()
+                })
+                .disable::<WinitPlugin>(),
+            ScheduleRunnerPlugin::run_loop(Duration::from_secs_f64(1.0 / 60.0)),
+        ));
+    } else {
+        app.add_plugins(DefaultPlugins.set(WindowPlugin {
+            primary_window: Some(Window {
+                title: "bevy_aslod: Silvretta (ASLOD Figure 8)".into(),
+                ..default()
+            }),
+            ..default()
+        }));
+    }
+    app.add_plugins(AslodPlugin::default().with_budget(BUDGET))
+        .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)))
+        .insert_resource(GlobalAmbientLight {
+            brightness: 400.0,
+            ..default()
+        })
+        .init_resource::<Shading>()
+        .add_systems(Startup, setup)
+        .add_systems(Update, (apply_shading, update_label));
+    if args.headless {
+        let dir = args
+            .screenshot
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("silvretta-shots"));
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            eprintln!("silvretta: cannot create {}: {e}", dir.display());
+            std::process::exit(1);
+        }
+        app.insert_resource(Shots::new(dir, args.frames))
+            .add_systems(Update, drive_shots.before(apply_shading));
+    } else {
+        app.add_systems(Update, (fly_camera, keys));
+    }
+    app.run();
+}
+
+/// Command-line options.
+#[derive(Debug, Default)]
+struct Args {
+    headless: bool,
+    frames: u32,
+    screenshot: Option<PathBuf>,
+}
+
+impl Args {
+    fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
+        let mut out = Args {
+            frames: 30,
+            ..default()
+        };
+        while let Some(arg) = args.next() {
+            match arg.as_str() {
+                "--headless" => out.headless = true,
+                "--frames" => {
+                    let n = args.next().ok_or("--frames needs a number")?;
+                    out.frames = n
+                        .parse()
+                        .map_err(|_| format!("--frames: not a number: {n}"))?;
+                }
+                "--screenshot" => {
+                    out.screenshot = Some(args.next().ok_or("--screenshot needs a folder")?.into());
+                }
+                other => return Err(format!("unknown argument {other}")),
+            }
+        }
+        Ok(out)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Terrain: a ridged multifractal (Musgrave) over seeded value noise.
+
+fn hash(x: i32, z: i32, seed: u32) -> f32 {
+    let mut h = (x as u32).wrapping_mul(0x27d4_eb2d) ^ (z as u32).wrapping_mul(0x1656_67b1) ^ seed;
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x85eb_ca6b);
+    h ^= h >> 13;
+    h = h.wrapping_mul(0xc2b2_ae35);
+    h ^= h >> 16;
+    h as f32 / u32::MAX as f32
+}
+
+fn value_noise(x: f32, z: f32, seed: u32) -> f32 {
+    let (x0, z0) = (x.floor(), z.floor());
+    let (fx, fz) = (x - x0, z - z0);
+    let (sx, sz) = (fx * fx * (3.0 - 2.0 * fx), fz * fz * (3.0 - 2.0 * fz));
+    let (ix, iz) = (x0 as i32, z0 as i32);
+    let a = hash(ix, iz, seed) + (hash(ix + 1, iz, seed) - hash(ix, iz, seed)) * sx;
+    let b = hash(ix, iz + 1, seed) + (hash(ix + 1, iz + 1, seed) - hash(ix, iz + 1, seed)) * sx;
+    a + (b - a) * sz
+}
+
+fn ridged(x: f32, z: f32) -> f32 {
+    let (mut sum, mut freq, mut amp, mut weight) = (0.0, 1.0, 0.6, 1.0);
+    for octave in 0..7 {
+        let n = value_noise(x * freq, z * freq, SEED.wrapping_add(octave * 7919));
+        let signal = (1.0 - (n * 2.0 - 1.0).abs()).powi(2) * weight;
+        weight = (signal * 2.0).clamp(0.0, 1.0);
+        sum += signal * amp;
+        freq *= 2.03;
+        amp *= 0.5;
+    }
+    sum
+}
+
+fn terrain_height(x: f32, z: f32) -> f32 {
+    HEIGHT * ridged(x / 70.0 + 3.7, z / 70.0 + 1.3)
+}
+
+/// The terrain: `SIDE`² vertices centred on the origin, with normals.
+fn terrain() -> IndexedMesh {
+    let half = (SIDE - 1) as f32 * SPACING * 0.5;
+    let at = |i: u32, j: u32| {
+        let (x, z) = (i as f32 * SPACING - half, j as f32 * SPACING - half);
+        Vec3::new(x, terrain_height(x, z), z)
+    };
+    let mut positions = Vec::with_capacity((SIDE * SIDE) as usize);
+    let mut normals = Vec::with_capacity(positions.capacity());
+    for j in 0..SIDE {
+        for i in 0..SIDE {
+            positions.push(at(i, j));
+            let dx = at((i + 1).min(SIDE - 1), j) - at(i.saturating_sub(1), j);
+            let dz = at(i, (j + 1).min(SIDE - 1)) - at(i, j.saturating_sub(1));
+            normals.push(dz.cross(dx).normalize_or(Vec3::Y));
+        }
+    }
+    let mut indices = Vec::with_capacity(((SIDE - 1) * (SIDE - 1) * 6) as usize);
+    for j in 0..SIDE - 1 {
+        for i in 0..SIDE - 1 {
+            let v = j * SIDE + i;
+            indices.extend_from_slice(&[v, v + SIDE, v + 1, v + 1, v + SIDE, v + SIDE + 1]);
+        }
+    }
+    let mut mesh = IndexedMesh::new(positions, indices);
+    mesh.normals = Some(normals);
+    mesh
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene.
+
+/// The two preset views of the figure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum View {
+    /// From a corner, low over the terrain.
+    Corner,
+    /// From straight above.
+    Top,
+}
+
+impl View {
+    fn transform(self) -> Transform {
+        let half = (SIDE - 1) as f32 * SPACING * 0.5;
+        match self {
+            View::Corner => Transform::from_xyz(-half + 4.0, 1.2 * HEIGHT, -half + 4.0)
+                .looking_at(Vec3::new(-half * 0.35, 0.0, -half * 0.35), Vec3::Y),
+            View::Top => {
+                Transform::from_xyz(0.0, 2.9 * half, 0.0).looking_at(Vec3::ZERO, Vec3::NEG_Z)
+            }
+        }
+    }
+}
+
+#[derive(Component)]
+struct MainCamera;
+
+#[derive(Component)]
+struct Label;
+
+/// The terrain's own material and whether regions are shaded by their triangle count.
+#[derive(Resource, Default)]
+struct Shading {
+    by_region: bool,
+    terrain: Handle<StandardMaterial>,
+    regions: Vec<Handle<StandardMaterial>>,
+}
+
+fn setup(
+    mut commands: Commands,
+    mut multires: ResMut<Assets<MultiresMesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut images: ResMut<Assets<Image>>,
+    mut shading: ResMut<Shading>,
+    shots: Option<Res<Shots>>,
+) {
+    let start = std::time::Instant::now();
+    let mesh = terrain();
+    let asset = Partition::grid(&mesh, GridPlane::XZ, 6, 6)
+        .map_err(bevy_aslod::plugin::MultiresError::from)
+        .and_then(|partition| MultiresMesh::from_indexed(&mesh, &partition));
+    let asset = match asset {
+        Ok(asset) => asset,
+        Err(e) => {
+            error!("cannot build the terrain: {e}");
+            return;
+        }
+    };
+    info!(
+        "terrain: {} triangles in {} regions ({}..{} triangles), built in {:.1} s",
+        mesh.triangle_count(),
+        asset.region_count(),
+        asset.min_triangles(),
+        asset.max_triangles(),
+        start.elapsed().as_secs_f32()
+    );
+    shading.terrain = materials.add(StandardMaterial {
+        base_color: Color::srgb(0.55, 0.52, 0.45),
+        perceptual_roughness: 0.95,
+        ..default()
+    });
+    commands.spawn((
+        MultiresModel(multires.add(asset)),
+        MeshMaterial3d(shading.terrain.clone()),
+        Transform::default(),
+    ));
+    commands.spawn((
+        DirectionalLight {
+            illuminance: 9_000.0,
+            shadow_maps_enabled: false,
+            ..default()
+        },
+        Transform::from_xyz(-1.0, 0.9, 0.4).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    let mut camera = commands.spawn((Camera3d::default(), View::Corner.transform(), MainCamera));
+    if let Some(shots) = shots {
+        let image = Image::new_target_texture(
+            SHOT_SIZE.0,
+            SHOT_SIZE.1,
+            TextureFormat::Rgba8Unorm,
+            Some(TextureFormat::Rgba8UnormSrgb),
+        );
+        let handle = images.add(image);
+        camera.insert(RenderTarget::Image(handle.clone().into()));
+        commands.insert_resource(ShotTarget(handle));
+        info!(
+            "offscreen: {} frames per shot into {}",
+            shots.frames,
+            shots.dir.display()
+        );
+    }
+    commands.spawn((
+        Text::new(""),
+        Node {
+            position_type: PositionType::Absolute,
+            top: px(8),
+            left: px(8),
+            ..default()
+        },
+        Label,
+    ));
+}
+
+/// Heat colour per region (red: the most triangles, blue: the fewest), or the terrain's own.
+fn apply_shading(
+    mut shading: ResMut<Shading>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    models: Query<&MultiresInstance>,
+    mut regions: Query<(&LodRegion, &mut MeshMaterial3d<StandardMaterial>)>,
+) {
+    let Ok(instance) = models.single() else {
+        return;
+    };
+    let shading = &mut *shading;
+    let caches = instance.caches();
+    let n = caches.region_count();
+    if shading.by_region {
+        while shading.regions.len() < n {
+            shading.regions.push(materials.add(StandardMaterial {
+                perceptual_roughness: 0.95,
+                ..default()
+            }));
+        }
+        let counts: Vec<usize> = (0..n).map(|r| caches.triangle_count(r)).collect();
+        // Relative to the busiest region: the colours show where the budget went.
+        let hi = counts.iter().copied().max().unwrap_or(1).max(1) as f32;
+        for (r, &count) in counts.iter().enumerate() {
+            let t = count as f32 / hi;
+            // Alternate the lightness like a chequerboard so neighbours stay apart.
+            let light = if (r / 6 + r % 6) % 2 == 0 { 1.0 } else { 0.8 };
+            let color = Color::srgb(
+                (0.15 + 0.85 * t) * light,
+                0.25 * light,
+                (1.0 - 0.85 * t) * light,
+            );
+            if let Some(mut m) = materials.get_mut(&shading.regions[r])
+                && m.base_color != color
+            {
+                m.base_color = color;
+            }
+        }
+    }
+    for (region, mut material) in &mut regions {
+        let want = if shading.by_region {
+            shading
+                .regions
+                .get(region.region)
+                .cloned()
+                .unwrap_or_default()
+        } else {
+            shading.terrain.clone()
+        };
+        if material.0 != want {
+            material.0 = want;
+        }
+    }
+}
+
+fn update_label(stats: Res<AslodStats>, mut label: Query<&mut Text, With<Label>>) {
+    for mut text in &mut label {
+        let s = format!(
+            "{} / {} triangles  ({} regions, {} changed, alloc {:.2} ms)\n1: corner  2: top  O: boxes  R: by region",
+            stats.triangles,
+            stats.budget,
+            stats.regions,
+            stats.regions_changed,
+            stats.allocation_ms
+        );
+        if text.0 != s {
+            text.0 = s;
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Interactive controls.
+
+fn keys(
+    input: Res<ButtonInput<KeyCode>>,
+    mut camera: Query<&mut Transform, With<MainCamera>>,
+    mut overlay: ResMut<AslodOverlay>,
+    mut shading: ResMut<Shading>,
+) {
+    if input.just_pressed(KeyCode::KeyO) {
+        overlay.0 = !overlay.0;
+    }
+    if input.just_pressed(KeyCode::KeyR) {
+        shading.by_region = !shading.by_region;
+    }
+    let view = if input.just_pressed(KeyCode::Digit1) {
+        Some(View::Corner)
+    } else if input.just_pressed(KeyCode::Digit2) {
+        Some(View::Top)
+    } else {
+        None
+    };
+    if let (Some(view), Ok(mut transform)) = (view, camera.single_mut()) {
+        *transform = view.transform();
+    }
+}
+
+fn fly_camera(
+    time: Res<Time>,
+    input: Res<ButtonInput<KeyCode>>,
+    mouse: Res<ButtonInput<MouseButton>>,
+    motion: Res<AccumulatedMouseMotion>,
+    mut camera: Query<&mut Transform, With<MainCamera>>,
+) {
+    let Ok(mut transform) = camera.single_mut() else {
+        return;
+    };
+    if mouse.pressed(MouseButton::Left) && motion.delta != Vec2::ZERO {
+        let (yaw, pitch, _) = transform.rotation.to_euler(EulerRot::YXZ);
+        let yaw = yaw - motion.delta.x * 0.003;
+        let pitch = (pitch - motion.delta.y * 0.003).clamp(-1.54, 1.54);
+        transform.rotation = Quat::from_euler(EulerRot::YXZ, yaw, pitch, 0.0);
+    }
+    let mut dir = Vec3::ZERO;
+    for (key, d) in [
+        (KeyCode::KeyW, *transform.forward()),
+        (KeyCode::KeyS, *transform.back()),
+        (KeyCode::KeyA, *transform.left()),
+        (KeyCode::KeyD, *transform.right()),
+        (KeyCode::KeyE, Vec3::Y),
+        (KeyCode::KeyQ, Vec3::NEG_Y),
+    ] {
+        if input.pressed(key) {
+            dir += d;
+        }
+    }
+    let speed = if input.pressed(KeyCode::ShiftLeft) {
+        120.0
+    } else {
+        30.0
+    };
+    transform.translation += dir.normalize_or_zero() * speed * time.delta_secs();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Headless screenshots.
+
+#[derive(Resource)]
+struct ShotTarget(Handle<Image>);
+
+/// The headless run: which shot is next, and what was recorded.
+#[derive(Resource)]
+struct Shots {
+    dir: PathBuf,
+    frames: u32,
+    list: Vec<(&'static str, View, bool)>,
+    index: usize,
+    wait: u32,
+    pending: bool,
+    attempts: u32,
+    views: serde_json::Map<String, serde_json::Value>,
+    done: bool,
+}
+
+impl Shots {
+    fn new(dir: PathBuf, frames: u32) -> Self {
+        Self {
+            dir,
+            frames: frames.max(2),
+            list: vec![
+                ("corner", View::Corner, false),
+                ("corner_regions", View::Corner, true),
+                ("top", View::Top, false),
+                ("top_regions", View::Top, true),
+            ],
+            index: 0,
+            wait: frames.max(2),
+            pending: false,
+            attempts: 0,
+            views: serde_json::Map::new(),
+            done: false,
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn drive_shots(
+    mut commands: Commands,
+    mut shots: ResMut<Shots>,
+    mut shading: ResMut<Shading>,
+    mut overlay: ResMut<AslodOverlay>,
+    target: Option<Res<ShotTarget>>,
+    mut camera: Query<&mut Transform, With<MainCamera>>,
+    models: Query<&MultiresInstance>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    if shots.done {
+        exit.write(AppExit::Success);
+        return;
+    }
+    let Some(&(name, view, by_region)) = shots.list.get(shots.index) else {
+        return;
+    };
+    if let Ok(mut transform) = camera.single_mut() {
+        let want = view.transform();
+        if *transform != want {
+            *transform = want;
+        }
+    }
+    shading.by_region = by_region;
+    overlay.0 = by_region;
+    if shots.pending {
+        return;
+    }
+    if shots.wait > 0 {
+        shots.wait -= 1;
+        return;
+    }
+    let (Some(target), Ok(instance)) = (target, models.single()) else {
+        return;
+    };
+    // Record the counts the frame is drawn with.
+    if !by_region {
+        let caches = instance.caches();
+        let counts: Vec<usize> = (0..caches.region_count())
+            .map(|r| caches.triangle_count(r))
+            .collect();
+        let eye = view.transform().translation;
+        let distance = |r: usize| {
+            let (lo, hi) = instance.regions().regions()[r].bounds();
+            eye.distance((lo + hi) * 0.5)
+        };
+        let order = {
+            let mut order: Vec<usize> = (0..counts.len()).collect();
+            order.sort_by(|&a, &b| distance(a).total_cmp(&distance(b)));
+            order
+        };
+        let total: usize = counts.iter().sum();
+        info!("{name}: {total} triangles, per region {counts:?}");
+        shots.views.insert(
+            name.to_string(),
+            serde_json::json!({
+                "total": total,
+                "regions": counts,
+                "nearest_region": order.first(),
+                "farthest_region": order.last(),
+                "camera": eye.to_array(),
+            }),
+        );
+    }
+    shots.pending = true;
+    commands
+        .spawn(Screenshot::image(target.0.clone()))
+        .observe(on_captured);
+}
+
+/// Saves a captured frame, or asks for another when nothing has been drawn yet.
+fn on_captured(captured: On<ScreenshotCaptured>, mut shots: ResMut<Shots>) {
+    let Some(&(name, _, _)) = shots.list.get(shots.index) else {
+        return;
+    };
+    let image = &captured.image;
+    let varied = image.data.as_ref().is_some_and(|data| {
+        let first = data.get(..4).unwrap_or(&[]);
+        let differing = data.chunks_exact(4).filter(|p| *p != first).count();
+        differing * 10 > data.len() / 4
+    });
+    if !varied && shots.attempts < 40 {
+        // The pipelines are still compiling (slow on a software rasteriser): try again.
+        shots.attempts += 1;
+        shots.wait = shots.frames / 2;
+        shots.pending = false;
+        return;
+    }
+    if !varied {
+        warn!("{name}: the frame still looks blank; saving it anyway");
+    }
+    let path = shots.dir.join(format!("{name}.png"));
+    match image.clone().try_into_dynamic() {
+        Ok(img) => match img.to_rgb8().save(&path) {
+            Ok(()) => info!("saved {}", path.display()),
+            Err(e) => error!("cannot save {}: {e}", path.display()),
+        },
+        Err(e) => error!("cannot convert the screenshot: {e}"),
+    }
+    shots.attempts = 0;
+    shots.index += 1;
+    shots.wait = shots.frames;
+    shots.pending = false;
+    if shots.index == shots.list.len() {
+        let max_total = shots
+            .views
+            .values()
+            .filter_map(|v| v["total"].as_u64())
+            .max()
+            .unwrap_or(0);
+        let json = serde_json::json!({
+            "budget": BUDGET,
+            "source_triangles": (SIDE - 1) * (SIDE - 1) * 2,
+            "regions": 36,
+            "total": max_total,
+            "views": shots.views,
+        });
+        let path = shots.dir.join("counts.json");
+        match serde_json::to_string_pretty(&json) {
+            Ok(text) => match std::fs::write(&path, text) {
+                Ok(()) => info!("saved {}", path.display()),
+                Err(e) => error!("cannot write {}: {e}", path.display()),
+            },
+            Err(e) => error!("cannot encode counts: {e}"),
+        }
+        shots.done = true;
+    }
+}

@@ -1,0 +1,178 @@
+//! The [`MultiresMesh`] asset: a partitioned multiresolution mesh shared by its instances.
+
+use crate::bevy_mesh::from_bevy_mesh;
+use crate::budget::{Obb, fit_aabb, fit_obb};
+use crate::mesh::{IndexedMesh, MeshError};
+use crate::multires::BuildOptions;
+use crate::regions::{GridPlane, Partition, RegionError, RegionMesh};
+use bevy::prelude::*;
+use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
+use glam::Vec3;
+use std::sync::Arc;
+use thiserror::Error;
+
+/// What can go wrong when building a [`MultiresMesh`].
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum MultiresError {
+    /// The source mesh could not be read or is invalid.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// Partitioning or building the regions failed.
+    #[error(transparent)]
+    Region(#[from] RegionError),
+}
+
+/// How to cut a mesh into regions for [`MultiresMesh::from_bevy_mesh`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PartitionSpec {
+    /// One region: the whole mesh changes detail as one.
+    Single,
+    /// A grid of `nx` by `ny` cells in `plane` ([`Partition::grid`]); for terrain.
+    Grid {
+        /// The plane the grid lies in.
+        plane: GridPlane,
+        /// Cells along the plane's first axis.
+        nx: usize,
+        /// Cells along the plane's second axis.
+        ny: usize,
+    },
+    /// About this many compact, connected regions ([`Partition::clusters`]); for objects.
+    Clusters(usize),
+}
+
+impl PartitionSpec {
+    /// The partition of `mesh` this spec describes.
+    ///
+    /// # Errors
+    /// As [`Partition::grid`] and [`Partition::clusters`].
+    pub fn partition(&self, mesh: &IndexedMesh) -> Result<Partition, RegionError> {
+        match *self {
+            Self::Single => Partition::grid(mesh, GridPlane::XZ, 1, 1),
+            Self::Grid { plane, nx, ny } => Partition::grid(mesh, plane, nx, ny),
+            Self::Clusters(target) => Partition::clusters(mesh, target),
+        }
+    }
+}
+
+/// A multiresolution mesh: regions with their progressive sequences, and one bounding box
+/// per region in the mesh's own space. Built once, shared by every [`MultiresModel`](super::MultiresModel)
+/// that uses it; each instance keeps its own levels of detail.
+#[derive(Asset, TypePath, Clone, Debug)]
+pub struct MultiresMesh {
+    regions: Arc<RegionMesh>,
+    obbs: Arc<[Obb]>,
+}
+
+impl MultiresMesh {
+    /// Wraps already built regions and fits one box per region (on its own vertices).
+    #[must_use]
+    pub fn from_regions(regions: RegionMesh) -> Self {
+        let obbs = regions
+            .regions()
+            .iter()
+            .map(|region| {
+                let points: Vec<Vec3> = region.own_positions().collect();
+                fit_obb(&points)
+                    .or_else(|| fit_aabb(&points))
+                    .unwrap_or_else(|| {
+                        let (lo, hi) = region.bounds();
+                        Obb::from_aabb(lo, hi)
+                    })
+            })
+            .collect();
+        Self {
+            regions: Arc::new(regions),
+            obbs,
+        }
+    }
+
+    /// Builds the regions of `mesh` cut by `partition`, with default [`BuildOptions`].
+    ///
+    /// # Errors
+    /// Any [`RegionError`] of [`RegionMesh::build`]: a partition made for another mesh, an
+    /// invalid mesh.
+    pub fn from_indexed(mesh: &IndexedMesh, partition: &Partition) -> Result<Self, MultiresError> {
+        Self::from_indexed_with(mesh, partition, &BuildOptions::default())
+    }
+
+    /// [`from_indexed`](Self::from_indexed) with explicit build options.
+    ///
+    /// # Errors
+    /// As [`from_indexed`](Self::from_indexed).
+    pub fn from_indexed_with(
+        mesh: &IndexedMesh,
+        partition: &Partition,
+        options: &BuildOptions,
+    ) -> Result<Self, MultiresError> {
+        Ok(Self::from_regions(RegionMesh::build(
+            mesh, partition, options,
+        )?))
+    }
+
+    /// Builds from a Bevy triangle-list mesh (positions, normals, UVs, joints and weights),
+    /// cut into regions as `spec` says.
+    ///
+    /// # Errors
+    /// [`MultiresError::Mesh`] when the mesh cannot be read (see
+    /// [`from_bevy_mesh`](crate::bevy_mesh::from_bevy_mesh)); [`MultiresError::Region`] when
+    /// it cannot be partitioned or built.
+    pub fn from_bevy_mesh(mesh: &Mesh, spec: PartitionSpec) -> Result<Self, MultiresError> {
+        let indexed = from_bevy_mesh(mesh)?;
+        let partition = spec.partition(&indexed)?;
+        Self::from_indexed(&indexed, &partition)
+    }
+
+    /// Starts [`from_indexed`](Self::from_indexed) on Bevy's [`AsyncComputeTaskPool`], for
+    /// meshes large enough to stall a frame. Poll the task (e.g. with
+    /// `bevy::tasks::futures::check_ready`) and add the result to `Assets<MultiresMesh>`.
+    /// The pool is created with default settings when no `TaskPoolPlugin` has made it.
+    pub fn build_async(
+        mesh: IndexedMesh,
+        partition: Partition,
+    ) -> Task<Result<Self, MultiresError>> {
+        AsyncComputeTaskPool::get_or_init(TaskPool::default)
+            .spawn(async move { Self::from_indexed(&mesh, &partition) })
+    }
+
+    /// The regions and their progressive sequences.
+    #[inline]
+    #[must_use]
+    pub fn regions(&self) -> &Arc<RegionMesh> {
+        &self.regions
+    }
+
+    /// One box per region, in the mesh's space, in region order.
+    #[inline]
+    #[must_use]
+    pub fn obbs(&self) -> &Arc<[Obb]> {
+        &self.obbs
+    }
+
+    /// Number of regions.
+    #[inline]
+    #[must_use]
+    pub fn region_count(&self) -> usize {
+        self.regions.regions().len()
+    }
+
+    /// Triangles at full detail, all regions together.
+    #[must_use]
+    pub fn max_triangles(&self) -> usize {
+        self.regions
+            .regions()
+            .iter()
+            .map(|r| r.max_triangles())
+            .sum()
+    }
+
+    /// Triangles at the coarsest level, all regions together.
+    #[must_use]
+    pub fn min_triangles(&self) -> usize {
+        self.regions
+            .regions()
+            .iter()
+            .map(|r| r.min_triangles())
+            .sum()
+    }
+}

@@ -1,0 +1,337 @@
+//! The Bevy plugin: multiresolution models under one polygon budget (feature `bevy`).
+//!
+//! Mark an entity with [`MultiresModel`] (a handle to a [`MultiresMesh`] asset) next to a
+//! `MeshMaterial3d<StandardMaterial>` and a `Transform`. The plugin gives it one child per
+//! region, each with its own `Mesh3d` (owned by the plugin), the model's material and a
+//! [`LodRegion`], and keeps the instance's levels of detail in a [`MultiresInstance`] on the
+//! model. Every frame it splits [`PolygonBudget::total`] among all regions of all models in
+//! view (ASLOD's runtime loop, section 5.4) and rewrites the index buffers of the regions
+//! whose level changed.
+//!
+//! | component / resource | on | meaning |
+//! |---|---|---|
+//! | [`MultiresModel`] | model root | which [`MultiresMesh`] to show |
+//! | [`LodPriority`] | model root (optional) | the user constant `c` in `w = c·A`; default `1` |
+//! | [`CountInBudget`] | a conventional `Mesh3d` entity | its triangles are fixed cost |
+//! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε |
+//! | [`AslodViewport`] | resource (optional) | viewport size for cameras without a known one |
+//! | [`AslodOverlay`] | resource | draws every region's world box with gizmos |
+//! | [`AslodStats`] | resource | what the last frame did (also as diagnostics) |
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use bevy_aslod::plugin::{AslodPlugin, MultiresMesh, MultiresModel, PartitionSpec};
+//!
+//! fn setup(
+//!     mut commands: Commands,
+//!     mut multires: ResMut<Assets<MultiresMesh>>,
+//!     mut materials: ResMut<Assets<StandardMaterial>>,
+//! ) {
+//!     let sphere = Mesh::from(Sphere::new(1.0).mesh().ico(5).unwrap());
+//!     let Ok(asset) = MultiresMesh::from_bevy_mesh(&sphere, PartitionSpec::Clusters(8)) else {
+//!         return;
+//!     };
+//!     commands.spawn((
+//!         MultiresModel(multires.add(asset)),
+//!         MeshMaterial3d(materials.add(StandardMaterial::default())),
+//!         Transform::default(),
+//!     ));
+//!     commands.spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 5.0)));
+//! }
+//!
+//! App::new()
+//!     .add_plugins((DefaultPlugins, AslodPlugin::default().with_budget(20_000)))
+//!     .add_systems(Startup, setup)
+//!     .run();
+//! ```
+
+mod asset;
+mod overlay;
+mod systems;
+
+pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
+
+use crate::budget::{AllocationParams, DEFAULT_ALPHA, Obb};
+use crate::regions::{RegionCaches, RegionMesh};
+use bevy::diagnostic::{Diagnostic, DiagnosticPath, RegisterDiagnostic};
+use bevy::prelude::*;
+use std::sync::Arc;
+
+/// Multiresolution meshes under one global polygon budget.
+///
+/// Systems, all in [`PostUpdate`]:
+///
+/// | set | runs | does |
+/// |---|---|---|
+/// | [`AslodSystems::Spawn`] | before [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate) | gives new [`MultiresModel`]s their region children |
+/// | [`AslodSystems::Allocate`] | after propagation | projected area of every region's world box, budget split |
+/// | [`AslodSystems::SelectLod`] | after `Allocate` | moves each region's polygon cache to its count |
+/// | [`AslodSystems::Deform`] | after `SelectLod` | (empty for now: skinning) |
+/// | [`AslodSystems::Upload`] | after `Deform` | rewrites the index buffers of dirty regions |
+///
+/// Everything runs before the renderer extracts meshes. An observer removes a model's region
+/// meshes from `Assets<Mesh>` when its [`MultiresInstance`] goes away (despawn). With
+/// `GizmoPlugin` present, a debug system draws region boxes while [`AslodOverlay`] is on.
+///
+/// Needs `Assets<Mesh>` and `Assets<StandardMaterial>` (`DefaultPlugins`, or
+/// `init_asset` in a headless app).
+#[derive(Clone, Debug, Default)]
+pub struct AslodPlugin {
+    /// The budget put in the [`PolygonBudget`] resource at start-up.
+    pub budget: PolygonBudget,
+    /// Whether the overlay starts on.
+    pub overlay: bool,
+}
+
+impl AslodPlugin {
+    /// Sets the total budget `P` in triangles.
+    #[must_use]
+    pub fn with_budget(mut self, total: u32) -> Self {
+        self.budget.total = total;
+        self
+    }
+
+    /// Sets α (see [the table](crate::budget#choosing-α)).
+    #[must_use]
+    pub fn with_alpha(mut self, alpha: f32) -> Self {
+        self.budget.alpha = alpha;
+        self
+    }
+
+    /// Sets the hysteresis ε in triangles.
+    #[must_use]
+    pub fn with_hysteresis(mut self, triangles: u32) -> Self {
+        self.budget.hysteresis = triangles;
+        self
+    }
+
+    /// Starts with the debug overlay on.
+    #[must_use]
+    pub fn with_overlay(mut self, on: bool) -> Self {
+        self.overlay = on;
+        self
+    }
+}
+
+impl Plugin for AslodPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<MultiresMesh>()
+            .register_type::<PolygonBudget>()
+            .insert_resource(self.budget.clone())
+            .insert_resource(AslodOverlay(self.overlay))
+            .init_resource::<AslodStats>()
+            .init_resource::<systems::AslodScratch>()
+            .add_observer(systems::remove_region_meshes);
+        diagnostics::register(app);
+        systems::configure(app);
+    }
+
+    fn finish(&self, app: &mut App) {
+        overlay::add_if_gizmos(app);
+    }
+}
+
+/// The plugin's system sets, in [`PostUpdate`], in this order.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AslodSystems {
+    /// Spawns region children for new models. Before [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate).
+    Spawn,
+    /// Splits the budget among all regions in view. After [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate)
+    /// (needs world transforms) and camera updates.
+    Allocate,
+    /// Moves each region's polygon cache to its allocated count. After `Allocate`.
+    SelectLod,
+    /// Deforms the cached vertices of skinned regions. After `SelectLod`; empty for now.
+    Deform,
+    /// Writes the index buffers of changed regions into their meshes. After `Deform`.
+    Upload,
+}
+
+/// The global polygon budget and how it is split (the paper's allocator node).
+#[derive(Resource, Reflect, Clone, Debug, PartialEq)]
+#[reflect(Resource, Default)]
+pub struct PolygonBudget {
+    /// `P`: the most triangles all multiresolution regions and the [`CountInBudget`] meshes
+    /// may show together. Must be positive; `0` is warned about and skipped.
+    ///
+    /// Default: `100_000`.
+    pub total: u32,
+    /// α: `pᵢ ∝ wᵢ^(1/α)`; `1` proportional to screen area, larger flattens towards an equal
+    /// split. Must be positive.
+    ///
+    /// Default: `3` ([`DEFAULT_ALPHA`], the paper's).
+    pub alpha: f32,
+    /// Hysteresis ε: a region keeps its level while its new target stays within this many
+    /// triangles of its current count.
+    ///
+    /// Default: `0`.
+    pub hysteresis: u32,
+}
+
+impl Default for PolygonBudget {
+    fn default() -> Self {
+        Self {
+            total: 100_000,
+            alpha: DEFAULT_ALPHA,
+            hysteresis: 0,
+        }
+    }
+}
+
+impl PolygonBudget {
+    /// The allocator's parameters for a fixed cost.
+    #[must_use]
+    pub fn params(&self, fixed_cost: u32) -> AllocationParams {
+        AllocationParams {
+            budget: self.total,
+            fixed_cost,
+            alpha: self.alpha,
+            hysteresis: self.hysteresis,
+        }
+    }
+}
+
+/// The user priority `c` of a model: its regions weigh `c · A`. Without it `c = 1`; `0`
+/// keeps the model at its coarsest level. Negative or non-finite values count as `0`.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component)]
+pub struct LodPriority(pub f32);
+
+impl Default for LodPriority {
+    fn default() -> Self {
+        Self(1.0)
+    }
+}
+
+/// A multiresolution model: the plugin gives this entity one child per region of the mesh.
+/// Put it next to a `MeshMaterial3d<StandardMaterial>` and a `Transform`.
+///
+/// The children are made once, when the asset is loaded, with the material the model has
+/// then; changing the handle or the material later does not rebuild them: despawn the model
+/// and spawn it again.
+#[derive(Component, Clone, Debug, PartialEq, Eq)]
+#[require(Transform, Visibility)]
+pub struct MultiresModel(pub Handle<MultiresMesh>);
+
+/// A region child of a [`MultiresModel`]: which region of the mesh its `Mesh3d` shows.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq, Eq)]
+#[reflect(Component)]
+pub struct LodRegion {
+    /// Index into the mesh's regions.
+    pub region: usize,
+}
+
+/// A conventional (not multiresolution) `Mesh3d` whose triangles count against the budget
+/// as fixed cost: `P' = P − Σ its triangles`.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component)]
+pub struct CountInBudget;
+
+/// The per-instance state of a [`MultiresModel`], added by the plugin: one polygon cache per
+/// region, the allocated counts and the region meshes.
+#[derive(Component, Debug)]
+pub struct MultiresInstance {
+    regions: Arc<RegionMesh>,
+    obbs: Arc<[Obb]>,
+    caches: RegionCaches,
+    targets: Vec<u32>,
+    meshes: Vec<Handle<Mesh>>,
+}
+
+impl MultiresInstance {
+    /// The instance's polygon caches (read-only).
+    #[inline]
+    #[must_use]
+    pub fn caches(&self) -> &RegionCaches {
+        &self.caches
+    }
+
+    /// The regions this instance shows.
+    #[inline]
+    #[must_use]
+    pub fn regions(&self) -> &RegionMesh {
+        &self.regions
+    }
+
+    /// Per region, the triangle count the last allocation gave it.
+    #[inline]
+    #[must_use]
+    pub fn targets(&self) -> &[u32] {
+        &self.targets
+    }
+
+    /// Per region, the Bevy mesh the plugin writes.
+    #[inline]
+    #[must_use]
+    pub fn meshes(&self) -> &[Handle<Mesh>] {
+        &self.meshes
+    }
+
+    /// Triangles the instance shows now, all regions together.
+    #[inline]
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.caches.total_triangles()
+    }
+}
+
+/// The viewport size in pixels for cameras whose size is not known yet (no render target,
+/// as in a headless test, or the first frame). A camera with a known viewport
+/// (`Camera::physical_viewport_size`) uses its own. Without this resource such cameras are
+/// skipped; with no usable camera, allocation does nothing that frame.
+#[derive(Resource, Clone, Copy, Debug, PartialEq)]
+pub struct AslodViewport(pub Vec2);
+
+/// Whether the debug overlay draws each region's world box (needs `GizmoPlugin`, part of
+/// `DefaultPlugins`), coloured from blue (coarsest) to red (full detail).
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AslodOverlay(pub bool);
+
+/// What the plugin did in the last frame; also published as diagnostics ([`diagnostics`]).
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+pub struct AslodStats {
+    /// Triangles of all region instances after `SelectLod`.
+    pub triangles: u64,
+    /// `P` of the frame.
+    pub budget: u32,
+    /// Triangles of the [`CountInBudget`] meshes.
+    pub fixed_cost: u32,
+    /// Models and regions seen.
+    pub models: usize,
+    /// Region instances seen.
+    pub regions: usize,
+    /// Cameras used.
+    pub cameras: usize,
+    /// Whether the allocation ran this frame (a camera, a valid budget).
+    pub allocated: bool,
+    /// Milliseconds in `Allocate`.
+    pub allocation_ms: f64,
+    /// Milliseconds in `SelectLod` and `Upload`.
+    pub update_ms: f64,
+    /// Regions whose index buffer was rewritten.
+    pub regions_changed: usize,
+}
+
+/// Diagnostic paths the plugin registers with Bevy's `DiagnosticsStore`.
+pub mod diagnostics {
+    use super::*;
+
+    /// Triangles rendered by all region instances.
+    pub const TRIANGLES: DiagnosticPath = DiagnosticPath::const_new("aslod/triangles");
+    /// The budget `P`.
+    pub const BUDGET: DiagnosticPath = DiagnosticPath::const_new("aslod/budget");
+    /// Time in `Allocate`, ms.
+    pub const ALLOCATION_MS: DiagnosticPath = DiagnosticPath::const_new("aslod/allocation_ms");
+    /// Time in `SelectLod` and `Upload`, ms.
+    pub const UPDATE_MS: DiagnosticPath = DiagnosticPath::const_new("aslod/update_ms");
+    /// Regions whose index buffer was rewritten this frame.
+    pub const REGIONS_CHANGED: DiagnosticPath = DiagnosticPath::const_new("aslod/regions_changed");
+
+    pub(super) fn register(app: &mut App) {
+        app.register_diagnostic(Diagnostic::new(TRIANGLES))
+            .register_diagnostic(Diagnostic::new(BUDGET))
+            .register_diagnostic(Diagnostic::new(ALLOCATION_MS).with_suffix("ms"))
+            .register_diagnostic(Diagnostic::new(UPDATE_MS).with_suffix("ms"))
+            .register_diagnostic(Diagnostic::new(REGIONS_CHANGED));
+    }
+}

@@ -1,0 +1,322 @@
+//! The plugin's systems, one per step of the runtime loop.
+
+use super::{
+    AslodStats, AslodSystems, AslodViewport, CountInBudget, LodPriority, LodRegion,
+    MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
+};
+use crate::bevy_mesh::to_bevy_mesh;
+use crate::budget::{Allocator, ProjectedAreaCamera, RegionInput};
+use crate::regions::RegionCaches;
+use bevy::diagnostic::Diagnostics;
+use bevy::mesh::Indices;
+use bevy::platform::time::Instant;
+use bevy::prelude::*;
+use bevy::transform::TransformSystems;
+
+/// Buffers kept across frames.
+#[derive(Resource, Default)]
+pub(crate) struct AslodScratch {
+    allocator: Allocator,
+    cameras: Vec<ProjectedAreaCamera>,
+    inputs: Vec<RegionInput>,
+    counts: Vec<u32>,
+    indices: Vec<u32>,
+    warned_budget: bool,
+}
+
+pub(super) fn configure(app: &mut App) {
+    app.configure_sets(
+        PostUpdate,
+        AslodSystems::Spawn.before(TransformSystems::Propagate),
+    )
+    .configure_sets(
+        PostUpdate,
+        (
+            AslodSystems::Allocate,
+            AslodSystems::SelectLod,
+            AslodSystems::Deform,
+            AslodSystems::Upload,
+        )
+            .chain()
+            .after(TransformSystems::Propagate)
+            .after(bevy::camera::CameraUpdateSystems),
+    )
+    .add_systems(
+        PostUpdate,
+        (
+            spawn_regions.in_set(AslodSystems::Spawn),
+            allocate.in_set(AslodSystems::Allocate),
+            select_lod.in_set(AslodSystems::SelectLod),
+            upload.in_set(AslodSystems::Upload),
+        ),
+    );
+}
+
+/// Gives every new [`MultiresModel`] whose asset is loaded its region children.
+#[allow(clippy::type_complexity)]
+fn spawn_regions(
+    mut commands: Commands,
+    models: Query<
+        (
+            Entity,
+            &MultiresModel,
+            Option<&MeshMaterial3d<StandardMaterial>>,
+        ),
+        Without<MultiresInstance>,
+    >,
+    assets: Res<Assets<MultiresMesh>>,
+    mut meshes: ResMut<Assets<Mesh>>,
+) {
+    for (entity, model, material) in &models {
+        let Some(asset) = assets.get(&model.0) else {
+            continue; // not loaded yet
+        };
+        let regions = asset.regions().clone();
+        let mut handles = Vec::with_capacity(regions.regions().len());
+        for (r, region) in regions.regions().iter().enumerate() {
+            // Empty until `Upload` writes the first level.
+            let handle = meshes.add(to_bevy_mesh(region.progressive_mesh().mesh(), &[]));
+            let mut child = commands.spawn((
+                Mesh3d(handle.clone()),
+                LodRegion { region: r },
+                Transform::default(),
+                ChildOf(entity),
+            ));
+            if let Some(material) = material {
+                child.insert(material.clone());
+            }
+            handles.push(handle);
+        }
+        if material.is_none() {
+            warn!(
+                "MultiresModel {entity} has no MeshMaterial3d<StandardMaterial>: its regions will not render"
+            );
+        }
+        let targets = regions
+            .regions()
+            .iter()
+            .map(|r| r.min_triangles() as u32)
+            .collect();
+        commands.entity(entity).insert(MultiresInstance {
+            caches: RegionCaches::new(&regions),
+            obbs: asset.obbs().clone(),
+            regions,
+            targets,
+            meshes: handles,
+        });
+    }
+}
+
+/// Removes a model's region meshes when its instance goes away.
+pub(super) fn remove_region_meshes(
+    remove: On<Remove, MultiresInstance>,
+    instances: Query<&MultiresInstance>,
+    meshes: Option<ResMut<Assets<Mesh>>>,
+) {
+    let (Ok(instance), Some(mut meshes)) = (instances.get(remove.entity), meshes) else {
+        return;
+    };
+    for handle in &instance.meshes {
+        meshes.remove(handle);
+    }
+}
+
+/// The viewport of a camera in pixels: its own, else [`AslodViewport`].
+fn viewport_size(camera: &Camera, fallback: Option<&AslodViewport>) -> Option<Vec2> {
+    camera
+        .physical_viewport_size()
+        .map(|s| s.as_vec2())
+        .filter(|s| s.x > 0.0 && s.y > 0.0)
+        .or(fallback.map(|v| v.0))
+}
+
+/// `Allocate`: projected area of every region of every model, maximum over cameras, budget
+/// split over all of them at once.
+#[allow(clippy::too_many_arguments)]
+fn allocate(
+    budget: Res<PolygonBudget>,
+    viewport: Option<Res<AslodViewport>>,
+    cameras: Query<(&Camera, &GlobalTransform, &Projection), With<Camera3d>>,
+    mut models: Query<(
+        &mut MultiresInstance,
+        &GlobalTransform,
+        Option<&LodPriority>,
+    )>,
+    fixed: Query<&Mesh3d, With<CountInBudget>>,
+    meshes: Res<Assets<Mesh>>,
+    mut scratch: ResMut<AslodScratch>,
+    mut stats: ResMut<AslodStats>,
+    mut diag: Diagnostics,
+) {
+    let start = Instant::now();
+    let scratch = &mut *scratch;
+    stats.allocated = false;
+    stats.budget = budget.total;
+    scratch.cameras.clear();
+    for (camera, transform, projection) in &cameras {
+        if !camera.is_active {
+            continue;
+        }
+        let Some(size) = viewport_size(camera, viewport.as_deref()) else {
+            continue;
+        };
+        // `camera_system` fills `clip_from_view`; before it has run (or without a renderer)
+        // it is the default identity, and the projection gives the right matrix.
+        let mut clip_from_view = camera.clip_from_view();
+        if clip_from_view == Mat4::IDENTITY || clip_from_view == Mat4::ZERO {
+            clip_from_view = projection.get_clip_from_view();
+        }
+        match ProjectedAreaCamera::from_world_from_view(transform.to_matrix(), clip_from_view, size)
+        {
+            Ok(c) => scratch.cameras.push(c),
+            Err(e) => debug!("skipping a camera for LOD allocation: {e}"),
+        }
+    }
+    stats.cameras = scratch.cameras.len();
+    if scratch.cameras.is_empty() || models.is_empty() {
+        return;
+    }
+
+    let fixed_cost: u64 = fixed
+        .iter()
+        .filter_map(|m| meshes.get(&m.0))
+        .map(|m| match m.indices() {
+            Some(i) => i.len() as u64 / 3,
+            None => m.count_vertices() as u64 / 3,
+        })
+        .sum();
+    let fixed_cost = u32::try_from(fixed_cost).unwrap_or(u32::MAX);
+
+    scratch.inputs.clear();
+    let mut model_count = 0;
+    for (instance, transform, priority) in &models {
+        model_count += 1;
+        let c = priority
+            .map(|p| p.0)
+            .filter(|c| c.is_finite() && *c > 0.0)
+            .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
+        let affine = transform.affine();
+        for (r, region) in instance.regions.regions().iter().enumerate() {
+            let obb = instance.obbs[r].transformed(&affine);
+            let area = scratch
+                .cameras
+                .iter()
+                .map(|cam| cam.projected_area(&obb))
+                .fold(0.0f32, f32::max);
+            let area = if area.is_finite() { area } else { 0.0 };
+            scratch.inputs.push(RegionInput::from_area(
+                area,
+                c,
+                region.min_triangles() as u32,
+                region.max_triangles() as u32,
+                instance.caches.triangle_count(r) as u32,
+            ));
+        }
+    }
+    stats.models = model_count;
+    stats.regions = scratch.inputs.len();
+    stats.fixed_cost = fixed_cost;
+
+    let params = budget.params(fixed_cost);
+    match scratch
+        .allocator
+        .allocate(&params, &scratch.inputs, &mut scratch.counts)
+    {
+        Ok(report) => {
+            scratch.warned_budget = false;
+            if report.infeasible {
+                debug!("polygon budget below the sum of the coarsest levels");
+            }
+        }
+        Err(e) => {
+            if !scratch.warned_budget {
+                warn!("LOD allocation skipped: {e}");
+                scratch.warned_budget = true;
+            }
+            return;
+        }
+    }
+    let mut next = scratch.counts.iter();
+    for (mut instance, _, _) in &mut models {
+        for target in &mut instance.targets {
+            *target = next.next().copied().unwrap_or(*target);
+        }
+    }
+    stats.allocated = true;
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    stats.allocation_ms = ms;
+    diag.add_measurement(&diagnostics::ALLOCATION_MS, || ms);
+    diag.add_measurement(&diagnostics::BUDGET, || f64::from(budget.total));
+}
+
+/// `SelectLod`: each region's cache to its target.
+fn select_lod(mut models: Query<&mut MultiresInstance>, mut stats: ResMut<AslodStats>) {
+    let start = Instant::now();
+    let mut total = 0u64;
+    for mut instance in &mut models {
+        let instance = &mut *instance;
+        for (r, &target) in instance.targets.iter().enumerate() {
+            total += instance
+                .caches
+                .set_triangle_count(&instance.regions, r, target as usize)
+                as u64;
+        }
+    }
+    stats.triangles = total;
+    stats.update_ms = start.elapsed().as_secs_f64() * 1e3;
+}
+
+/// `Upload`: rewrite the index buffers of the dirty regions, and nothing else.
+fn upload(
+    mut models: Query<&mut MultiresInstance>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut scratch: ResMut<AslodScratch>,
+    mut stats: ResMut<AslodStats>,
+    mut diag: Diagnostics,
+) {
+    let start = Instant::now();
+    let mut changed = 0;
+    for mut instance in &mut models {
+        let instance = &mut *instance;
+        for r in 0..instance.caches.region_count() {
+            if !instance.caches.is_dirty(r) {
+                continue;
+            }
+            let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) else {
+                // The mesh was removed by someone else: clear the flag, nothing to write.
+                instance
+                    .caches
+                    .write_indices(&instance.regions, r, &mut scratch.indices);
+                continue;
+            };
+            match mesh.try_indices_mut_option() {
+                // Rewrite the buffer in place: no allocation in steady state.
+                Ok(Some(Indices::U32(indices))) => {
+                    instance.caches.write_indices(&instance.regions, r, indices);
+                }
+                Ok(_) => {
+                    instance
+                        .caches
+                        .write_indices(&instance.regions, r, &mut scratch.indices);
+                    mesh.insert_indices(Indices::U32(scratch.indices.clone()));
+                }
+                Err(_) => {
+                    instance
+                        .caches
+                        .write_indices(&instance.regions, r, &mut scratch.indices);
+                    warn_once!(
+                        "a region mesh's data is no longer in the main world; its LOD is not updated"
+                    );
+                    continue;
+                }
+            }
+            changed += 1;
+        }
+    }
+    stats.regions_changed = changed;
+    stats.update_ms += start.elapsed().as_secs_f64() * 1e3;
+    let (triangles, update_ms) = (stats.triangles as f64, stats.update_ms);
+    diag.add_measurement(&diagnostics::TRIANGLES, || triangles);
+    diag.add_measurement(&diagnostics::UPDATE_MS, || update_ms);
+    diag.add_measurement(&diagnostics::REGIONS_CHANGED, || changed as f64);
+}

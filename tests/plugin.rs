@@ -1,0 +1,408 @@
+//! The Bevy plugin without a GPU: region children, budget split, despawn, run-time changes.
+#![cfg(feature = "bevy")]
+
+use bevy::diagnostic::DiagnosticsStore;
+use bevy::prelude::*;
+use bevy_aslod::mesh::IndexedMesh;
+use bevy_aslod::plugin::{
+    AslodPlugin, AslodStats, AslodViewport, CountInBudget, LodPriority, LodRegion,
+    MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec, PolygonBudget, diagnostics,
+};
+use bevy_aslod::regions::{GridPlane, Partition};
+use glam::Vec3;
+
+/// A bumpy `n`×`n`-vertex terrain patch of size 16×16 around the origin.
+fn terrain(n: u32) -> IndexedMesh {
+    let mut positions = Vec::new();
+    for z in 0..n {
+        for x in 0..n {
+            let (fx, fz) = (x as f32, z as f32);
+            let y = ((fx * 0.7).sin() * (fz * 0.9).cos() + (fx * 0.31 + fz * 0.17).sin()) * 0.6;
+            let s = 16.0 / (n - 1) as f32;
+            positions.push(Vec3::new(fx * s - 8.0, y, fz * s - 8.0));
+        }
+    }
+    let mut indices = Vec::new();
+    for z in 0..n - 1 {
+        for x in 0..n - 1 {
+            let i = z * n + x;
+            indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
+        }
+    }
+    IndexedMesh::new(positions, indices)
+}
+
+fn asset() -> MultiresMesh {
+    let mesh = terrain(25);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2).expect("grid");
+    MultiresMesh::from_indexed(&mesh, &partition).expect("valid terrain")
+}
+
+fn app(budget: u32) -> App {
+    let mut app = App::new();
+    app.add_plugins((MinimalPlugins, AssetPlugin::default(), TransformPlugin))
+        .init_asset::<Mesh>()
+        .init_asset::<StandardMaterial>()
+        .add_plugins(AslodPlugin::default().with_budget(budget))
+        // No render target in a headless app: give cameras a viewport.
+        .insert_resource(AslodViewport(Vec2::new(1280.0, 720.0)));
+    app
+}
+
+fn spawn_camera(app: &mut App, at: Vec3) -> Entity {
+    app.world_mut()
+        .spawn((
+            Camera3d::default(),
+            Projection::Perspective(PerspectiveProjection {
+                aspect_ratio: 16.0 / 9.0,
+                ..default()
+            }),
+            Transform::from_translation(at).looking_at(Vec3::ZERO, Vec3::Y),
+        ))
+        .id()
+}
+
+fn spawn_model(app: &mut App, handle: &Handle<MultiresMesh>, at: Vec3) -> Entity {
+    let material = app
+        .world_mut()
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::default());
+    app.world_mut()
+        .spawn((
+            MultiresModel(handle.clone()),
+            MeshMaterial3d(material),
+            Transform::from_translation(at),
+        ))
+        .id()
+}
+
+fn add_asset(app: &mut App) -> Handle<MultiresMesh> {
+    app.world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(asset())
+}
+
+fn triangles(app: &mut App, model: Entity) -> usize {
+    app.world()
+        .get::<MultiresInstance>(model)
+        .expect("the plugin added an instance")
+        .triangle_count()
+}
+
+fn stats(app: &App) -> AslodStats {
+    *app.world().resource::<AslodStats>()
+}
+
+fn region_children(app: &mut App) -> Vec<(Entity, LodRegion)> {
+    let mut q = app.world_mut().query::<(Entity, &LodRegion)>();
+    q.iter(app.world()).map(|(e, r)| (e, *r)).collect()
+}
+
+#[test]
+fn models_get_one_child_per_region_with_mesh_and_material() {
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    app.update();
+
+    let children = region_children(&mut app);
+    assert_eq!(children.len(), 4, "2x2 grid: four region children");
+    let world = app.world();
+    let material = world
+        .get::<MeshMaterial3d<StandardMaterial>>(model)
+        .unwrap()
+        .0
+        .clone();
+    for (entity, _) in &children {
+        assert_eq!(
+            world.get::<ChildOf>(*entity).map(ChildOf::parent),
+            Some(model)
+        );
+        let mesh = world.get::<Mesh3d>(*entity).expect("region has a Mesh3d");
+        let mesh = world
+            .resource::<Assets<Mesh>>()
+            .get(&mesh.0)
+            .expect("mesh asset");
+        assert!(
+            mesh.indices().is_some_and(|i| !i.is_empty()),
+            "indices uploaded"
+        );
+        assert_eq!(
+            world
+                .get::<MeshMaterial3d<StandardMaterial>>(*entity)
+                .unwrap()
+                .0,
+            material
+        );
+    }
+    let mut regions: Vec<usize> = children.iter().map(|(_, r)| r.region).collect();
+    regions.sort_unstable();
+    assert_eq!(regions, vec![0, 1, 2, 3]);
+    let s = stats(&app);
+    assert!(s.allocated && s.regions == 4 && s.models == 1, "{s:?}");
+}
+
+#[test]
+fn uploaded_indices_match_the_caches() {
+    let mut app = app(1_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    app.update();
+    app.update();
+    let world = app.world();
+    let instance = world.get::<MultiresInstance>(model).unwrap();
+    for (r, handle) in instance.meshes().iter().enumerate() {
+        let mesh = world.resource::<Assets<Mesh>>().get(handle).unwrap();
+        let written = mesh.indices().unwrap().len() / 3;
+        assert!(written <= instance.caches().triangle_count(r));
+        assert!(!instance.caches().is_dirty(r), "uploaded regions are clean");
+    }
+}
+
+#[test]
+fn moving_the_camera_closer_gives_more_triangles() {
+    let mut app = app(1_000);
+    let handle = add_asset(&mut app);
+    let near = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let other = spawn_model(&mut app, &handle, Vec3::new(40.0, 0.0, 0.0));
+    // First close to the other model, the first one far off to the side.
+    let camera = spawn_camera(&mut app, Vec3::new(40.0, 40.0, 90.0));
+    *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+        Transform::from_xyz(40.0, 40.0, 90.0).looking_at(Vec3::new(30.0, 0.0, 0.0), Vec3::Y);
+    app.update();
+    let far_view = triangles(&mut app, near);
+
+    *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+        Transform::from_xyz(0.0, 6.0, 14.0).looking_at(Vec3::ZERO, Vec3::Y);
+    app.update();
+    let close_view = triangles(&mut app, near);
+    assert!(
+        close_view > far_view,
+        "closer camera: {close_view} triangles, farther: {far_view}"
+    );
+    assert!(triangles(&mut app, near) > triangles(&mut app, other));
+}
+
+#[test]
+fn models_off_the_view_axis_are_seen() {
+    // Before `camera_system` runs, `Camera::clip_from_view` is the identity; the projection
+    // must be used instead, or only models on the view axis would count.
+    let mut app = app(100_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 40.0));
+    let side = spawn_model(&mut app, &handle, Vec3::new(18.0, 0.0, 0.0));
+    app.update();
+    let coarsest = app
+        .world()
+        .resource::<Assets<MultiresMesh>>()
+        .get(&handle)
+        .unwrap()
+        .min_triangles();
+    assert!(
+        triangles(&mut app, side) > coarsest,
+        "a visible model off the axis gets detail"
+    );
+}
+
+#[test]
+fn total_stays_within_the_budget_every_frame() {
+    const P: u32 = 1_200;
+    let mut app = app(P);
+    let handle = add_asset(&mut app);
+    let models: Vec<Entity> = (0..3)
+        .map(|i| spawn_model(&mut app, &handle, Vec3::new(i as f32 * 20.0, 0.0, 0.0)))
+        .collect();
+    let camera = spawn_camera(&mut app, Vec3::new(0.0, 30.0, 80.0));
+    for frame in 0..30 {
+        let angle = frame as f32 * 0.2;
+        let at = Vec3::new(angle.cos() * 40.0, 8.0 + frame as f32, angle.sin() * 40.0);
+        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+            Transform::from_translation(at).looking_at(Vec3::new(20.0, 0.0, 0.0), Vec3::Y);
+        app.update();
+        let total: usize = models.iter().map(|&m| triangles(&mut app, m)).sum();
+        assert!(total <= P as usize, "frame {frame}: {total} > {P}");
+        assert_eq!(stats(&app).triangles, total as u64);
+    }
+    let total: usize = models.iter().map(|&m| triangles(&mut app, m)).sum();
+    assert!(total > P as usize / 2, "the budget is used: {total}");
+}
+
+#[test]
+fn despawning_a_model_removes_its_regions_and_meshes() {
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let keep = spawn_model(&mut app, &handle, Vec3::new(30.0, 0.0, 0.0));
+    app.update();
+    assert_eq!(region_children(&mut app).len(), 8);
+    let meshes_before = app.world().resource::<Assets<Mesh>>().len();
+    assert_eq!(meshes_before, 8);
+
+    app.world_mut().despawn(model);
+    app.update();
+    let left = region_children(&mut app);
+    assert_eq!(left.len(), 4, "only the other model's regions are left");
+    for (e, _) in left {
+        assert_eq!(
+            app.world().get::<ChildOf>(e).map(ChildOf::parent),
+            Some(keep)
+        );
+    }
+    assert_eq!(
+        app.world().resource::<Assets<Mesh>>().len(),
+        4,
+        "meshes removed"
+    );
+}
+
+#[test]
+fn changing_the_budget_at_run_time_changes_the_total() {
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let a = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let b = spawn_model(&mut app, &handle, Vec3::new(-20.0, 0.0, 0.0));
+    app.update();
+    let before = triangles(&mut app, a) + triangles(&mut app, b);
+    assert!(before <= 2_000);
+
+    app.world_mut().resource_mut::<PolygonBudget>().total = 500;
+    app.update();
+    let after = triangles(&mut app, a) + triangles(&mut app, b);
+    assert!(after <= 500, "{after} > 500");
+    assert!(after < before, "{after} !< {before}");
+    assert_eq!(stats(&app).budget, 500);
+}
+
+#[test]
+fn conventional_meshes_count_against_the_budget() {
+    let mut app = app(1_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    // 200 triangles of fixed cost.
+    let positions: Vec<[f32; 3]> = (0..600).map(|i| [i as f32, (i % 3) as f32, 0.0]).collect();
+    let mesh = Mesh::new(
+        bevy::mesh::PrimitiveTopology::TriangleList,
+        bevy::asset::RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions);
+    let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    app.world_mut().spawn((Mesh3d(mesh), CountInBudget));
+    app.update();
+    assert_eq!(stats(&app).fixed_cost, 200);
+    assert!(triangles(&mut app, model) <= 800);
+}
+
+#[test]
+fn without_a_camera_nothing_is_allocated_and_models_stay_coarse() {
+    let mut app = app(100_000);
+    let handle = add_asset(&mut app);
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    app.update();
+    assert!(!stats(&app).allocated);
+    let coarsest = app
+        .world()
+        .resource::<Assets<MultiresMesh>>()
+        .get(&handle)
+        .unwrap()
+        .min_triangles();
+    assert_eq!(triangles(&mut app, model), coarsest);
+}
+
+#[test]
+fn zero_priority_keeps_a_model_coarse() {
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    app.world_mut().entity_mut(model).insert(LodPriority(0.0));
+    app.update();
+    let coarsest = app
+        .world()
+        .resource::<Assets<MultiresMesh>>()
+        .get(&handle)
+        .unwrap()
+        .min_triangles();
+    assert_eq!(triangles(&mut app, model), coarsest);
+}
+
+#[test]
+fn a_zero_budget_is_skipped_not_a_panic() {
+    let mut app = app(0);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    spawn_model(&mut app, &handle, Vec3::ZERO);
+    app.update();
+    assert!(!stats(&app).allocated);
+}
+
+#[test]
+fn diagnostics_are_published() {
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    spawn_model(&mut app, &handle, Vec3::ZERO);
+    app.update();
+    app.update();
+    let store = app.world().resource::<DiagnosticsStore>();
+    for path in [
+        &diagnostics::TRIANGLES,
+        &diagnostics::BUDGET,
+        &diagnostics::ALLOCATION_MS,
+        &diagnostics::UPDATE_MS,
+        &diagnostics::REGIONS_CHANGED,
+    ] {
+        let d = store
+            .get(path)
+            .unwrap_or_else(|| panic!("{path:?} registered"));
+        assert!(d.measurement().is_some(), "{path:?} measured");
+    }
+    let tris = store.get(&diagnostics::TRIANGLES).unwrap().value().unwrap();
+    assert!(tris > 0.0 && tris <= 2_000.0);
+}
+
+#[test]
+fn bad_bevy_meshes_are_errors() {
+    let mesh = Mesh::new(
+        bevy::mesh::PrimitiveTopology::LineList,
+        bevy::asset::RenderAssetUsages::default(),
+    );
+    assert!(MultiresMesh::from_bevy_mesh(&mesh, PartitionSpec::Single).is_err());
+    let empty = Mesh::new(
+        bevy::mesh::PrimitiveTopology::TriangleList,
+        bevy::asset::RenderAssetUsages::default(),
+    );
+    assert!(MultiresMesh::from_bevy_mesh(&empty, PartitionSpec::Clusters(4)).is_err());
+}
+
+#[test]
+fn from_bevy_mesh_builds_regions() {
+    let mesh = Mesh::from(Plane3d::default().mesh().size(8.0, 8.0).subdivisions(15));
+    let asset = MultiresMesh::from_bevy_mesh(
+        &mesh,
+        PartitionSpec::Grid {
+            plane: GridPlane::XZ,
+            nx: 2,
+            ny: 2,
+        },
+    )
+    .expect("a plane is valid");
+    assert_eq!(asset.region_count(), 4);
+    assert_eq!(asset.obbs().len(), 4);
+    assert_eq!(asset.max_triangles(), 2 * 16 * 16);
+}
+
+#[test]
+fn build_async_gives_the_same_regions() {
+    let mesh = terrain(25);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2).expect("grid");
+    let task = MultiresMesh::build_async(mesh, partition);
+    let built = bevy::tasks::block_on(task).expect("valid terrain");
+    let direct = asset();
+    assert_eq!(built.regions().as_ref(), direct.regions().as_ref());
+    assert_eq!(built.obbs().len(), 4);
+}
