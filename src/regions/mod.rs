@@ -399,6 +399,27 @@ fn build_region(
     // exists to collapse along.
     let mut pinned: Vec<bool> = (0..global.len()).map(|i| i >= own_vertices).collect();
     let mut foreign_region: Vec<u32> = vec![u32::MAX; own_vertices];
+    // Going round an own vertex, count where the ring passes from own to foreign vertices:
+    // more than once means several separate runs of foreign neighbours, so there is no
+    // single front to collapse along (random or fragmented partitions); pin those too.
+    // Counted per position, so that the seam copies of a vertex share one ring.
+    let at = weld_positions(&sub.positions).remap;
+    let mut own_to_foreign = vec![0u32; own_vertices];
+    for t in sub.indices.chunks_exact(3) {
+        for k in 0..3 {
+            let (u, a, b) = (
+                t[k] as usize,
+                t[(k + 1) % 3] as usize,
+                t[(k + 2) % 3] as usize,
+            );
+            if u < own_vertices && a < own_vertices && b >= own_vertices {
+                own_to_foreign[at[u] as usize] += 1;
+            }
+        }
+    }
+    for u in 0..own_vertices {
+        pinned[u] |= own_to_foreign[at[u] as usize] > 1;
+    }
     for t in sub.indices.chunks_exact(3) {
         for &a in t {
             for &b in t {
