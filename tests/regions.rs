@@ -345,7 +345,7 @@ fn known_fold_with_a_fragmented_random_partition() {
         5 + (trial % 4) as u32,
         6 + (trial % 5) as u32,
         &noise,
-        trial % 2 == 0,
+        trial.is_multiple_of(2),
     );
     let mut state = trial * 2654435761 + 7;
     let ids: Vec<u32> = (0..mesh.vertex_count())
@@ -365,7 +365,7 @@ fn known_fold_with_a_fragmented_random_partition() {
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
         let r = (lcg >> 33) as usize % regions.regions().len();
-        let f = if lcg % 3 == 0 {
+        let f = if lcg.is_multiple_of(3) {
             0.0
         } else {
             ((lcg >> 20) % 1000) as f64 / 1000.0
