@@ -406,3 +406,33 @@ fn build_async_gives_the_same_regions() {
     assert_eq!(built.regions().as_ref(), direct.regions().as_ref());
     assert_eq!(built.obbs().len(), 4);
 }
+
+#[test]
+fn hot_reloading_the_asset_rebuilds_the_regions() {
+    let mut app = app(5_000);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let handle = add_asset(&mut app);
+    spawn_model(&mut app, &handle, Vec3::ZERO);
+    app.update();
+    assert_eq!(region_children(&mut app).len(), 4, "2x2 grid");
+    // Replace the asset in place with a 3x3 partition of the same terrain.
+    let mesh = terrain(25);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).expect("grid");
+    let reloaded = MultiresMesh::from_indexed(&mesh, &partition).expect("valid terrain");
+    app.world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .insert(handle.id(), reloaded)
+        .expect("the handle's asset exists");
+    app.update();
+    app.update();
+    assert_eq!(
+        region_children(&mut app).len(),
+        9,
+        "the model shows the reloaded asset's regions"
+    );
+    assert_eq!(
+        app.world().resource::<Assets<Mesh>>().len(),
+        9,
+        "old region meshes freed"
+    );
+}

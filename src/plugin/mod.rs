@@ -63,7 +63,7 @@ use std::sync::Arc;
 ///
 /// | set | runs | does |
 /// |---|---|---|
-/// | [`AslodSystems::Spawn`] | before [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate) | gives new [`MultiresModel`]s their region children |
+/// | [`AslodSystems::Spawn`] | before [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate) | gives new [`MultiresModel`]s their region children; rebuilds them when their asset is modified (hot reload) |
 /// | [`AslodSystems::Allocate`] | after propagation | projected area of every region's world box, budget split |
 /// | [`AslodSystems::SelectLod`] | after `Allocate` | moves each region's polygon cache to its count |
 /// | [`AslodSystems::Deform`] | after `SelectLod` | (empty for now: skinning) |

@@ -44,7 +44,9 @@ pub(super) fn configure(app: &mut App) {
     .add_systems(
         PostUpdate,
         (
-            spawn_regions.in_set(AslodSystems::Spawn),
+            (rebuild_modified, spawn_regions)
+                .chain()
+                .in_set(AslodSystems::Spawn),
             allocate.in_set(AslodSystems::Allocate),
             select_lod.in_set(AslodSystems::SelectLod),
             upload.in_set(AslodSystems::Upload),
@@ -104,6 +106,37 @@ fn spawn_regions(
             targets,
             meshes: handles,
         });
+    }
+}
+
+/// Hot reload: when a [`MultiresMesh`] changes, every model showing it loses its region
+/// children and its instance (whose observer frees the region meshes), so `spawn_regions`
+/// builds them anew from the new asset.
+fn rebuild_modified(
+    mut commands: Commands,
+    mut events: MessageReader<AssetEvent<MultiresMesh>>,
+    models: Query<(Entity, &MultiresModel), With<MultiresInstance>>,
+    regions: Query<(Entity, &ChildOf), With<LodRegion>>,
+) {
+    let mut modified = Vec::new();
+    for event in events.read() {
+        if let AssetEvent::Modified { id } = event {
+            modified.push(*id);
+        }
+    }
+    if modified.is_empty() {
+        return;
+    }
+    for (model, handle) in &models {
+        if !modified.contains(&handle.0.id()) {
+            continue;
+        }
+        for (region, parent) in &regions {
+            if parent.parent() == model {
+                commands.entity(region).despawn();
+            }
+        }
+        commands.entity(model).remove::<MultiresInstance>();
     }
 }
 
