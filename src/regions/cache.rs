@@ -15,6 +15,8 @@ pub struct RegionCaches {
     dirty: Vec<bool>,
     /// Scratch: triangles not to emit.
     skip: Vec<u32>,
+    /// Scratch: border triangles by oriented position key.
+    keys: Vec<([u32; 3], bool, u32)>,
 }
 
 /// The triangle's positions sorted, and whether the sort kept its winding; `None` when
@@ -50,6 +52,7 @@ impl RegionCaches {
                 .collect(),
             dirty: vec![true; mesh.regions().len()],
             skip: Vec::new(),
+            keys: Vec::new(),
         }
     }
 
@@ -155,7 +158,8 @@ impl RegionCaches {
         let indices = self.caches[region].indices();
         let mut skip = std::mem::take(&mut self.skip);
         skip.clear();
-        let mut keys: Vec<([u32; 3], bool, u32)> = Vec::new();
+        let mut keys = std::mem::take(&mut self.keys);
+        keys.clear();
         let mut last_triangle = u32::MAX;
         for bc in &data.border {
             if bc.corner as usize >= active {
@@ -200,6 +204,7 @@ impl RegionCaches {
             }
         }
         self.skip = skip;
+        self.keys = keys;
         self.dirty[region] = false;
         out.len() / 3
     }
