@@ -5,11 +5,13 @@
 pub mod bevy_mesh;
 pub mod budget;
 pub mod distance;
+pub mod mannequin;
 pub mod mesh;
 pub mod multires;
 #[cfg(feature = "bevy")]
 pub mod plugin;
 pub mod regions;
+pub mod skin;
 
 /// The types most users need.
 pub mod prelude {

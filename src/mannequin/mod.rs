@@ -1,0 +1,1 @@
+//! The procedural mannequin: a skinned, animated humanoid written as a `.glb`.
