@@ -1,0 +1,227 @@
+//! Linear blend skinning of the vertices a polygon cache refers to (sections 5.3 and 5.4).
+
+use super::{Influences, MAX_INFLUENCES};
+use glam::{Mat4, Vec3, Vec4};
+
+/// The blended affine skinning matrix of one vertex, as four columns.
+///
+/// `rigid` takes the first (dominant) joint alone with weight 1. Otherwise the matrices are
+/// summed weight by weight, stopping at the first weight that is not positive (weights are
+/// sorted largest first). Joints without a matrix are skipped. Every placement in this module
+/// goes through this one function, so a vertex gets bit-for-bit the same result whichever
+/// entry point places it.
+#[inline(always)]
+fn skin_matrix(
+    matrices: &[Mat4],
+    joints: [u16; MAX_INFLUENCES],
+    weights: [f32; MAX_INFLUENCES],
+    rigid: bool,
+) -> [Vec4; 4] {
+    if rigid {
+        return match matrices.get(usize::from(joints[0])) {
+            Some(m) => [m.x_axis, m.y_axis, m.z_axis, m.w_axis],
+            None => {
+                debug_assert!(false, "joint {} has no matrix", joints[0]);
+                [Vec4::ZERO; 4]
+            }
+        };
+    }
+    let mut c = [Vec4::ZERO; 4];
+    for k in 0..MAX_INFLUENCES {
+        let w = weights[k];
+        if w <= 0.0 || w.is_nan() {
+            break;
+        }
+        let Some(m) = matrices.get(usize::from(joints[k])) else {
+            debug_assert!(false, "joint {} has no matrix", joints[k]);
+            continue;
+        };
+        c[0] += m.x_axis * w;
+        c[1] += m.y_axis * w;
+        c[2] += m.z_axis * w;
+        c[3] += m.w_axis * w;
+    }
+    c
+}
+
+#[inline(always)]
+fn apply_point(c: &[Vec4; 4], p: Vec3) -> Vec3 {
+    (c[0] * p.x + c[1] * p.y + c[2] * p.z + c[3]).truncate()
+}
+
+#[inline(always)]
+fn apply_normal(c: &[Vec4; 4], n: Vec3) -> Vec3 {
+    (c[0] * n.x + c[1] * n.y + c[2] * n.z)
+        .truncate()
+        .normalize_or(n)
+}
+
+/// Places one vertex the way [`blend_with_rigid`] does: a rigid vertex by its dominant
+/// (first) joint alone, any other by full linear blend skinning,
+/// `Σ w_k M_{j_k} p` over its non-zero weights.
+///
+/// `joints`/`weights` follow [`Influences`]' invariants (sorted largest first). A joint without
+/// a matrix is skipped (and asserts in debug builds).
+///
+/// See also [`skin_normal`], [`blend`].
+#[inline]
+#[must_use]
+pub fn skin_position(
+    matrices: &[Mat4],
+    position: Vec3,
+    joints: [u16; MAX_INFLUENCES],
+    weights: [f32; MAX_INFLUENCES],
+    rigid: bool,
+) -> Vec3 {
+    apply_point(&skin_matrix(matrices, joints, weights, rigid), position)
+}
+
+/// Turns one normal the way [`blend_with_rigid`] does: the blended matrix's upper 3x3 applied
+/// to the normal, normalised; the input normal when the result has no length.
+///
+/// See also [`skin_position`].
+#[inline]
+#[must_use]
+pub fn skin_normal(
+    matrices: &[Mat4],
+    normal: Vec3,
+    joints: [u16; MAX_INFLUENCES],
+    weights: [f32; MAX_INFLUENCES],
+    rigid: bool,
+) -> Vec3 {
+    apply_normal(&skin_matrix(matrices, joints, weights, rigid), normal)
+}
+
+/// Linear blend skinning of the listed vertices only (sections 5.3 and 5.4: a region's cache
+/// deforms only the vertices its current level refers to).
+///
+/// `matrices[j]` is the skinning matrix of joint `j` (the joint's global transform times its
+/// inverse bind matrix, in whatever space the caller wants the output). For each `i` in
+/// `vertices`:
+/// - `out_positions[i] = Σ_k w_k M_{j_k} positions[i]`, which is the blended matrix
+///   `Σ_k w_k M_{j_k}` applied to the point (one matrix product per vertex, however many
+///   influences);
+/// - `out_normals[i]` = the blended matrix's upper 3x3 applied to `normals[i]`, normalised.
+///   This is exact for rotations and uniform scales; under non-uniform scale it is the
+///   usual linear-blend approximation, not the inverse transpose. A normal that blends to
+///   zero length keeps its input value.
+///
+/// Every other entry of the outputs is left untouched, so a caller keeps one full-size
+/// buffer per model and refreshes only what the cache draws. Normals are written only when
+/// both `normals` and `out_normals` are given.
+///
+/// The weights must be sorted largest first ([`Influences`]' invariant): the sum stops at the
+/// first zero weight. No allocation. Out-of-range vertex indices (in `positions`,
+/// `influences` or an output) and joints without a matrix are skipped, and assert in debug
+/// builds; they never panic in release builds.
+///
+/// See also [`blend_with_rigid`], which places rigid vertices by one bone.
+pub fn blend(
+    matrices: &[Mat4],
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    influences: &Influences,
+    vertices: &[u32],
+    out_positions: &mut [Vec3],
+    out_normals: Option<&mut [Vec3]>,
+) {
+    blend_impl(
+        matrices,
+        positions,
+        normals,
+        influences,
+        None,
+        vertices,
+        out_positions,
+        out_normals,
+    );
+}
+
+/// [`blend`], with rigid vertices placed by their dominant (first) influence alone, with
+/// weight 1.
+///
+/// `rigid[i]` is true for a vertex of a rigid region
+/// ([`SkinDecomposition::rigid`](super::SkinDecomposition::rigid)); a vertex past the end of
+/// `rigid` is not rigid. A rigid vertex on a region border is drawn by several regions'
+/// caches; this way each of them places it bit-for-bit the same, and
+/// [`skin_position`] agrees with all of them.
+#[allow(clippy::too_many_arguments)]
+pub fn blend_with_rigid(
+    matrices: &[Mat4],
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    influences: &Influences,
+    rigid: &[bool],
+    vertices: &[u32],
+    out_positions: &mut [Vec3],
+    out_normals: Option<&mut [Vec3]>,
+) {
+    blend_impl(
+        matrices,
+        positions,
+        normals,
+        influences,
+        Some(rigid),
+        vertices,
+        out_positions,
+        out_normals,
+    );
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn blend_impl(
+    matrices: &[Mat4],
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    influences: &Influences,
+    rigid: Option<&[bool]>,
+    vertices: &[u32],
+    out_positions: &mut [Vec3],
+    out_normals: Option<&mut [Vec3]>,
+) {
+    let joints = influences.joints.as_slice();
+    let weights = influences.weights.as_slice();
+    let is_rigid = |i: usize| rigid.is_some_and(|r| r.get(i).copied().unwrap_or(false));
+    match (normals, out_normals) {
+        (Some(normals), Some(out_normals)) => {
+            for &i in vertices {
+                let i = i as usize;
+                let (Some(&p), Some(&n), Some(&j), Some(&w)) = (
+                    positions.get(i),
+                    normals.get(i),
+                    joints.get(i),
+                    weights.get(i),
+                ) else {
+                    debug_assert!(false, "vertex {i} is out of range");
+                    continue;
+                };
+                let c = skin_matrix(matrices, j, w, is_rigid(i));
+                match (out_positions.get_mut(i), out_normals.get_mut(i)) {
+                    (Some(op), Some(on)) => {
+                        *op = apply_point(&c, p);
+                        *on = apply_normal(&c, n);
+                    }
+                    _ => debug_assert!(false, "vertex {i} is out of the output range"),
+                }
+            }
+        }
+        _ => {
+            for &i in vertices {
+                let i = i as usize;
+                let (Some(&p), Some(&j), Some(&w)) =
+                    (positions.get(i), joints.get(i), weights.get(i))
+                else {
+                    debug_assert!(false, "vertex {i} is out of range");
+                    continue;
+                };
+                let c = skin_matrix(matrices, j, w, is_rigid(i));
+                if let Some(op) = out_positions.get_mut(i) {
+                    *op = apply_point(&c, p);
+                } else {
+                    debug_assert!(false, "vertex {i} is out of the output range");
+                }
+            }
+        }
+    }
+}
