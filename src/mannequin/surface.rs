@@ -326,6 +326,49 @@ pub(super) fn vertex_normals(positions: &[Vec3], indices: &[u32]) -> Vec<Vec3> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn single_patch_rejects_ambiguous_cells() {
+        assert!(single_patch(0) && single_patch(0xff) && single_patch(0b1));
+        assert!(single_patch(0b1111), "a face inside");
+        assert!(!single_patch(0b1001), "diagonal corners of a face");
+        assert!(!single_patch(0b1000_0001), "opposite corners of the cell");
+        assert!(!single_patch(!0b1000_0001), "their complement");
+    }
+
+    /// Two inside nodes on the diagonal of a cell face: unmended, the cells on either side of
+    /// the face share an edge of four triangles.
+    #[test]
+    fn mended_grid_gives_a_manifold() {
+        let field = |p: Vec3| {
+            let inside = [Vec3::new(2.0, 2.0, 2.0), Vec3::new(3.0, 3.0, 2.0)];
+            if inside.contains(&p) { -0.5 } else { 0.5 }
+        };
+        let oriented_edges = |grid: &Grid| {
+            let (_, indices) = surface_nets(grid);
+            let mut edges: Vec<(u32, u32)> = indices
+                .chunks_exact(3)
+                .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+                .collect();
+            edges.sort_unstable();
+            edges
+        };
+        let mut grid = Grid::sample(Vec3::ZERO, 1.0, UVec3::splat(6), field);
+        let edges = oriented_edges(&grid);
+        assert!(
+            edges.windows(2).any(|w| w[0] == w[1]),
+            "ambiguous before mending"
+        );
+
+        assert_eq!(grid.make_manifold(), Some(1));
+        let edges = oriented_edges(&grid);
+        for w in edges.windows(2) {
+            assert_ne!(w[0], w[1], "an oriented edge is used twice");
+        }
+        for &(a, b) in &edges {
+            assert!(edges.binary_search(&(b, a)).is_ok(), "edge {a}-{b} is open");
+        }
+    }
+
     /// A sphere polygonises into a closed mesh whose triangles face outwards.
     #[test]
     fn sphere_is_closed_and_outward() {
