@@ -21,6 +21,18 @@ pub enum MultiresError {
     /// Partitioning or building the regions failed.
     #[error(transparent)]
     Region(#[from] RegionError),
+    /// The skin's influences are invalid.
+    #[error(transparent)]
+    Skin(#[from] crate::skin::SkinError),
+    /// A skinned build was asked of a mesh without joints or weights.
+    #[error("the mesh has no joints or weights (JOINTS_0/WEIGHTS_0): it is not skinned")]
+    NotSkinned,
+    /// An inverse bind matrix has a NaN or infinite entry.
+    #[error("inverse bind matrix {joint} is not finite")]
+    NonFiniteBindpose {
+        /// The joint.
+        joint: usize,
+    },
 }
 
 /// How to cut a mesh into regions for [`MultiresMesh::from_bevy_mesh`].
@@ -62,6 +74,7 @@ impl PartitionSpec {
 pub struct MultiresMesh {
     regions: Arc<RegionMesh>,
     obbs: Arc<[Obb]>,
+    pub(super) skin: Option<Arc<super::skin::SkinBinding>>,
 }
 
 impl MultiresMesh {
@@ -84,6 +97,7 @@ impl MultiresMesh {
         Self {
             regions: Arc::new(regions),
             obbs,
+            skin: None,
         }
     }
 

@@ -47,9 +47,13 @@
 
 mod asset;
 mod overlay;
+mod scene;
+mod skin;
 mod systems;
 
 pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
+pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
+pub use skin::{MultiresSkin, SkinBinding};
 
 use crate::budget::{AllocationParams, DEFAULT_ALPHA, Obb};
 use crate::regions::{RegionCaches, RegionMesh};
@@ -66,8 +70,8 @@ use std::sync::Arc;
 /// | [`AslodSystems::Spawn`] | before [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate) | gives new [`MultiresModel`]s their region children; rebuilds them when their asset is modified (hot reload) |
 /// | [`AslodSystems::Allocate`] | after propagation | projected area of every region's world box, budget split |
 /// | [`AslodSystems::SelectLod`] | after `Allocate` | moves each region's polygon cache to its count |
-/// | [`AslodSystems::Deform`] | after `SelectLod` | (empty for now: skinning) |
-/// | [`AslodSystems::Upload`] | after `Deform` | rewrites the index buffers of dirty regions |
+/// | [`AslodSystems::Deform`] | after `SelectLod` | blends the cached vertices of skinned regions whose joints moved or whose cache changed |
+/// | [`AslodSystems::Upload`] | after `Deform` | rewrites the index buffers (and blended vertices) of changed regions |
 ///
 /// Everything runs before the renderer extracts meshes. An observer removes a model's region
 /// meshes from `Assets<Mesh>` when its [`MultiresInstance`] goes away (despawn). With
@@ -121,6 +125,7 @@ impl Plugin for AslodPlugin {
             .insert_resource(AslodOverlay(self.overlay))
             .init_resource::<AslodStats>()
             .init_resource::<systems::AslodScratch>()
+            .init_resource::<scene::SceneAssetCache>()
             .add_observer(systems::remove_region_meshes);
         diagnostics::register(app);
         systems::configure(app);
@@ -141,7 +146,7 @@ pub enum AslodSystems {
     Allocate,
     /// Moves each region's polygon cache to its allocated count. After `Allocate`.
     SelectLod,
-    /// Deforms the cached vertices of skinned regions. After `SelectLod`; empty for now.
+    /// Blends the cached vertices of skinned regions. After `SelectLod`.
     Deform,
     /// Writes the index buffers of changed regions into their meshes. After `Deform`.
     Upload,
@@ -236,6 +241,10 @@ pub struct MultiresInstance {
     caches: RegionCaches,
     targets: Vec<u32>,
     meshes: Vec<Handle<Mesh>>,
+    /// Skinned models: the deformation state.
+    skin: Option<skin::SkinState>,
+    /// Region entities that are not children of the model (rigid regions under joints).
+    detached: Vec<Entity>,
 }
 
 impl MultiresInstance {
@@ -265,6 +274,29 @@ impl MultiresInstance {
     #[must_use]
     pub fn meshes(&self) -> &[Handle<Mesh>] {
         &self.meshes
+    }
+
+    /// Whether the instance is skinned and animated by joints.
+    #[inline]
+    #[must_use]
+    pub fn is_skinned(&self) -> bool {
+        self.skin.is_some()
+    }
+
+    /// The world-space box of every region as the last `Allocate` saw it (skinned models:
+    /// moved with their bones), else `None`.
+    #[must_use]
+    pub fn skinned_world_boxes(&self) -> Option<&[Obb]> {
+        self.skin.as_ref().map(|s| s.world_obbs.as_slice())
+    }
+
+    /// Per region, the entity that draws it.
+    #[must_use]
+    pub fn region_entities(&self) -> Vec<Option<Entity>> {
+        match &self.skin {
+            Some(s) => s.regions.iter().map(|r| r.entity).collect(),
+            None => vec![None; self.meshes.len()],
+        }
     }
 
     /// Triangles the instance shows now, all regions together.
@@ -308,6 +340,10 @@ pub struct AslodStats {
     pub allocation_ms: f64,
     /// Milliseconds in `SelectLod` and `Upload`.
     pub update_ms: f64,
+    /// Milliseconds in `Deform` (skinned models; `0` when no joint moved).
+    pub deform_ms: f64,
+    /// Vertices blended in `Deform`.
+    pub vertices_blended: usize,
     /// Regions whose index buffer was rewritten.
     pub regions_changed: usize,
 }
@@ -326,12 +362,15 @@ pub mod diagnostics {
     pub const UPDATE_MS: DiagnosticPath = DiagnosticPath::const_new("aslod/update_ms");
     /// Regions whose index buffer was rewritten this frame.
     pub const REGIONS_CHANGED: DiagnosticPath = DiagnosticPath::const_new("aslod/regions_changed");
+    /// Time in `Deform`, ms.
+    pub const DEFORM_MS: DiagnosticPath = DiagnosticPath::const_new("aslod/deform_ms");
 
     pub(super) fn register(app: &mut App) {
         app.register_diagnostic(Diagnostic::new(TRIANGLES))
             .register_diagnostic(Diagnostic::new(BUDGET))
             .register_diagnostic(Diagnostic::new(ALLOCATION_MS).with_suffix("ms"))
             .register_diagnostic(Diagnostic::new(UPDATE_MS).with_suffix("ms"))
-            .register_diagnostic(Diagnostic::new(REGIONS_CHANGED));
+            .register_diagnostic(Diagnostic::new(REGIONS_CHANGED))
+            .register_diagnostic(Diagnostic::new(DEFORM_MS).with_suffix("ms"));
     }
 }

@@ -1,5 +1,6 @@
 //! The plugin's systems, one per step of the runtime loop.
 
+use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
 use super::{
     AslodStats, AslodSystems, AslodViewport, CountInBudget, LodPriority, LodRegion,
     MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
@@ -7,8 +8,11 @@ use super::{
 use crate::bevy_mesh::to_bevy_mesh;
 use crate::budget::{Allocator, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
+use crate::skin::SkinRegionKind;
+use bevy::camera::visibility::NoFrustumCulling;
 use bevy::diagnostic::Diagnostics;
 use bevy::mesh::Indices;
+use bevy::mesh::VertexAttributeValues;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::transform::TransformSystems;
@@ -44,17 +48,25 @@ pub(super) fn configure(app: &mut App) {
     .add_systems(
         PostUpdate,
         (
-            (rebuild_modified, spawn_regions)
+            (
+                super::scene::convert_scenes,
+                rebuild_modified,
+                spawn_regions,
+            )
                 .chain()
                 .in_set(AslodSystems::Spawn),
-            allocate.in_set(AslodSystems::Allocate),
+            (update_skins, allocate)
+                .chain()
+                .in_set(AslodSystems::Allocate),
             select_lod.in_set(AslodSystems::SelectLod),
+            deform.in_set(AslodSystems::Deform),
             upload.in_set(AslodSystems::Upload),
         ),
     );
 }
 
-/// Gives every new [`MultiresModel`] whose asset is loaded its region children.
+/// Gives every new [`MultiresModel`] whose asset is loaded its region children. A skinned
+/// asset with a [`MultiresSkin`] puts each rigid region under its joint entity instead.
 #[allow(clippy::type_complexity)]
 fn spawn_regions(
     mut commands: Commands,
@@ -63,29 +75,81 @@ fn spawn_regions(
             Entity,
             &MultiresModel,
             Option<&MeshMaterial3d<StandardMaterial>>,
+            Option<&MultiresSkin>,
         ),
         Without<MultiresInstance>,
     >,
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
 ) {
-    for (entity, model, material) in &models {
+    for (entity, model, material, joints) in &models {
         let Some(asset) = assets.get(&model.0) else {
             continue; // not loaded yet
         };
         let regions = asset.regions().clone();
+        let binding = match (asset.skin(), joints) {
+            (Some(binding), Some(_)) => Some(binding.clone()),
+            (Some(_), None) => {
+                warn!(
+                    "MultiresModel {entity} shows a skinned mesh but has no MultiresSkin: drawn in its bind pose"
+                );
+                None
+            }
+            _ => None,
+        };
+        let mut state = binding
+            .as_ref()
+            .map(|b| SkinState::new(b.clone(), &regions));
         let mut handles = Vec::with_capacity(regions.regions().len());
+        let mut detached = Vec::new();
         for (r, region) in regions.regions().iter().enumerate() {
+            let (mesh, parent, rigid) = match &binding {
+                Some(binding) => {
+                    let mesh = initial_region_mesh(binding, &regions, r);
+                    match binding.kinds()[r] {
+                        SkinRegionKind::Rigid { bone } => {
+                            match joints.and_then(|j| j.joints.get(bone as usize)) {
+                                Some(&joint) => (mesh, joint, true),
+                                None => {
+                                    warn!(
+                                        "MultiresModel {entity}: joint {bone} is missing; its rigid region stays at the model"
+                                    );
+                                    (mesh, entity, false)
+                                }
+                            }
+                        }
+                        SkinRegionKind::Deformable { .. } => (mesh, entity, false),
+                    }
+                }
+                None => (region.progressive_mesh().mesh().clone(), entity, false),
+            };
             // Empty until `Upload` writes the first level.
-            let handle = meshes.add(to_bevy_mesh(region.progressive_mesh().mesh(), &[]));
+            let handle = meshes.add(to_bevy_mesh(
+                &crate::mesh::IndexedMesh {
+                    joints: None,
+                    weights: None,
+                    ..mesh
+                },
+                &[],
+            ));
             let mut child = commands.spawn((
                 Mesh3d(handle.clone()),
                 LodRegion { region: r },
                 Transform::default(),
-                ChildOf(entity),
+                ChildOf(parent),
             ));
             if let Some(material) = material {
                 child.insert(material.clone());
+            }
+            if let Some(state) = &mut state {
+                state.regions[r].entity = Some(child.id());
+                if !rigid {
+                    // Its vertices move every frame: Bevy's box from the bind pose is stale.
+                    child.insert(NoFrustumCulling);
+                }
+            }
+            if rigid {
+                detached.push(child.id());
             }
             handles.push(handle);
         }
@@ -105,6 +169,8 @@ fn spawn_regions(
             regions,
             targets,
             meshes: handles,
+            skin: state,
+            detached,
         });
     }
 }
@@ -140,13 +206,21 @@ fn rebuild_modified(
     }
 }
 
-/// Removes a model's region meshes when its instance goes away.
+/// Removes a model's region meshes when its instance goes away, and the region entities
+/// that live under joints rather than under the model.
 pub(super) fn remove_region_meshes(
     remove: On<Remove, MultiresInstance>,
+    mut commands: Commands,
     instances: Query<&MultiresInstance>,
     meshes: Option<ResMut<Assets<Mesh>>>,
 ) {
-    let (Ok(instance), Some(mut meshes)) = (instances.get(remove.entity), meshes) else {
+    let Ok(instance) = instances.get(remove.entity) else {
+        return;
+    };
+    for &entity in &instance.detached {
+        commands.entity(entity).try_despawn();
+    }
+    let Some(mut meshes) = meshes else {
         return;
     };
     for handle in &instance.meshes {
@@ -229,8 +303,12 @@ fn allocate(
             .filter(|c| c.is_finite() && *c > 0.0)
             .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
         let affine = transform.affine();
+        let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
         for (r, region) in instance.regions.regions().iter().enumerate() {
-            let obb = instance.obbs[r].transformed(&affine);
+            let obb = match skinned.and_then(|boxes| boxes.get(r)) {
+                Some(obb) => *obb,
+                None => instance.obbs[r].transformed(&affine),
+            };
             let area = scratch
                 .cameras
                 .iter()
@@ -299,6 +377,106 @@ fn select_lod(mut models: Query<&mut MultiresInstance>, mut stats: ResMut<AslodS
     stats.update_ms = start.elapsed().as_secs_f64() * 1e3;
 }
 
+/// Reads the joints of every skinned model (before `allocate`, which needs the region
+/// boxes): skinning matrices, which joints moved, each region's world box.
+fn update_skins(
+    mut models: Query<(&mut MultiresInstance, &GlobalTransform, &MultiresSkin)>,
+    globals: Query<&GlobalTransform>,
+) {
+    for (mut instance, root, joints) in &mut models {
+        let instance = &mut *instance;
+        let Some(state) = &mut instance.skin else {
+            continue;
+        };
+        if state.update_matrices(root, &joints.joints, &globals, &instance.obbs) {
+            warn_once!(
+                "a skinned MultiresModel names a joint entity without a GlobalTransform; that joint keeps its last pose"
+            );
+        }
+    }
+}
+
+/// `Deform`: blend the cached vertices of skinned regions whose joints moved or whose cache
+/// changed, in parallel over regions.
+fn deform(
+    mut models: Query<&mut MultiresInstance>,
+    mut stats: ResMut<AslodStats>,
+    mut diag: Diagnostics,
+) {
+    let start = Instant::now();
+    let mut skinned: Vec<Mut<MultiresInstance>> =
+        models.iter_mut().filter(|i| i.skin.is_some()).collect();
+    let mut work = Vec::with_capacity(skinned.len());
+    for instance in &mut skinned {
+        let instance = &mut **instance;
+        if let Some(state) = &mut instance.skin {
+            work.push((&mut instance.caches, &*instance.regions, state));
+        }
+    }
+    let blended = skin::deform(&mut work);
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    stats.deform_ms = ms;
+    stats.vertices_blended = blended;
+    diag.add_measurement(&diagnostics::DEFORM_MS, || ms);
+}
+
+/// Writes what `Deform` produced for one skinned instance into its region meshes: index
+/// buffers that changed, and the vertices blended this frame (only those).
+fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) -> usize {
+    let Some(skin) = &mut instance.skin else {
+        return 0;
+    };
+    let mut changed = 0;
+    for (r, state) in skin.regions.iter_mut().enumerate() {
+        if !state.indices_changed && state.written.is_empty() {
+            continue;
+        }
+        if let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) {
+            if state.indices_changed {
+                match mesh.try_indices_mut_option() {
+                    Ok(Some(Indices::U32(indices))) => {
+                        indices.clear();
+                        indices.extend_from_slice(&state.indices);
+                    }
+                    Ok(_) => mesh.insert_indices(Indices::U32(state.indices.clone())),
+                    Err(_) => warn_once!(
+                        "a region mesh's data is no longer in the main world; its LOD is not updated"
+                    ),
+                }
+                changed += 1;
+            }
+            if !state.written.is_empty() {
+                if let Ok(Some(VertexAttributeValues::Float32x3(positions))) =
+                    mesh.try_attribute_mut_option(Mesh::ATTRIBUTE_POSITION)
+                {
+                    for &v in &state.written {
+                        if let (Some(slot), Some(p)) = (
+                            positions.get_mut(v as usize),
+                            state.positions.get(v as usize),
+                        ) {
+                            *slot = p.to_array();
+                        }
+                    }
+                }
+                if let Ok(Some(VertexAttributeValues::Float32x3(normals))) =
+                    mesh.try_attribute_mut_option(Mesh::ATTRIBUTE_NORMAL)
+                {
+                    for &v in &state.written {
+                        if let (Some(slot), Some(n)) =
+                            (normals.get_mut(v as usize), state.normals.get(v as usize))
+                        {
+                            *slot = n.to_array();
+                        }
+                    }
+                }
+            }
+        }
+        state.indices_changed = false;
+        state.written.clear();
+    }
+    changed
+}
+
 /// `Upload`: rewrite the index buffers of the dirty regions, and nothing else.
 fn upload(
     mut models: Query<&mut MultiresInstance>,
@@ -311,6 +489,7 @@ fn upload(
     let mut changed = 0;
     for mut instance in &mut models {
         let instance = &mut *instance;
+        changed += upload_skinned(instance, &mut meshes);
         for r in 0..instance.caches.region_count() {
             if !instance.caches.is_dirty(r) {
                 continue;

@@ -1,0 +1,209 @@
+//! Turning the meshes of a spawned scene (typically a glTF character) into multiresolution
+//! models, so Bevy's own loader, joints and `AnimationPlayer` drive them.
+
+use super::{CountInBudget, MultiresMesh, MultiresModel, MultiresSkin, PartitionSpec};
+use crate::bevy_mesh::from_bevy_mesh;
+use crate::skin::DEFAULT_RIGID_DELTA;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+
+/// Put on the root of a scene (next to the glTF loader's scene root component): once the
+/// scene has spawned and its meshes are loaded, the plugin turns every mesh under it into a
+/// multiresolution model under the global budget.
+///
+/// - A skinned mesh (`SkinnedMesh`) becomes a skinned model: regions by influence, rigid
+///   regions under their joints, deformable regions blended on the CPU from the same
+///   joints, so the scene's `AnimationPlayer` drives it as before.
+/// - An unskinned mesh becomes a [`MultiresModel`] on the same entity (cut as
+///   [`static_partition`](Self::static_partition) says): if it hangs under a joint, the
+///   hierarchy animates it (ASLOD section 4).
+/// - A mesh with morph targets stays conventional and counts against the budget as fixed
+///   cost ([`CountInBudget`]), with a warning (once).
+///
+/// The original mesh handle moves to [`MultiresSourceMesh`] on its entity. Assets are built
+/// once per source mesh and shared by every scene that shows it. When it is done the plugin
+/// adds [`MultiresSceneModels`] to this entity.
+#[derive(Component, Clone, Debug, PartialEq)]
+pub struct MultiresScene {
+    /// δ: a skinned vertex whose dominant weight is at least `1 − δ` is rigid. Default
+    /// [`DEFAULT_RIGID_DELTA`], so imported skinning stays exact.
+    pub rigid_delta: f32,
+    /// How unskinned meshes are cut into regions. Default [`PartitionSpec::Single`].
+    pub static_partition: PartitionSpec,
+}
+
+impl Default for MultiresScene {
+    fn default() -> Self {
+        Self {
+            rigid_delta: DEFAULT_RIGID_DELTA,
+            static_partition: PartitionSpec::Single,
+        }
+    }
+}
+
+/// What the plugin made of a [`MultiresScene`].
+#[derive(Component, Clone, Debug, Default, PartialEq, Eq)]
+pub struct MultiresSceneModels {
+    /// Model roots of the skinned meshes (children of the original mesh entities).
+    pub skinned: Vec<Entity>,
+    /// Unskinned mesh entities that became models in place.
+    pub rigid: Vec<Entity>,
+    /// Meshes kept conventional (morph targets, or a build error), counted in the budget.
+    pub fixed: Vec<Entity>,
+    /// Skinned vertices with more than two influences, over all skinned meshes.
+    pub more_than_two: usize,
+}
+
+impl MultiresSceneModels {
+    /// Every model root of the scene, skinned first.
+    pub fn models(&self) -> impl Iterator<Item = Entity> + '_ {
+        self.skinned.iter().chain(&self.rigid).copied()
+    }
+}
+
+/// The mesh an entity showed before it became multiresolution (kept, not dropped).
+#[derive(Component, Clone, Debug, PartialEq, Eq)]
+pub struct MultiresSourceMesh(pub Handle<Mesh>);
+
+/// Built assets by source mesh (and skin), shared by every scene instance.
+#[derive(Resource, Default)]
+pub(crate) struct SceneAssetCache {
+    built: HashMap<(AssetId<Mesh>, Option<AssetId<SkinnedMeshInverseBindposes>>), Built>,
+    warned_morph: bool,
+}
+
+#[derive(Clone)]
+enum Built {
+    Ok(Handle<MultiresMesh>, usize),
+    Failed,
+}
+
+/// Converts the meshes of every spawned [`MultiresScene`] once they are all loaded.
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+pub(crate) fn convert_scenes(
+    mut commands: Commands,
+    scenes: Query<(Entity, &MultiresScene), Without<MultiresSceneModels>>,
+    children: Query<&Children>,
+    mesh_entities: Query<(
+        &Mesh3d,
+        Option<&SkinnedMesh>,
+        Option<&MeshMaterial3d<StandardMaterial>>,
+    )>,
+    meshes: Res<Assets<Mesh>>,
+    bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
+    mut multires: ResMut<Assets<MultiresMesh>>,
+    mut cache: ResMut<SceneAssetCache>,
+) {
+    for (root, options) in &scenes {
+        let found: Vec<Entity> = children
+            .iter_descendants(root)
+            .filter(|&e| mesh_entities.contains(e))
+            .collect();
+        if found.is_empty() {
+            continue; // not spawned yet
+        }
+        let loaded = found.iter().all(|&e| {
+            let Ok((mesh, skin, _)) = mesh_entities.get(e) else {
+                return false;
+            };
+            meshes.contains(&mesh.0)
+                && skin.is_none_or(|s| bindposes.contains(&s.inverse_bindposes))
+        });
+        if !loaded {
+            continue;
+        }
+        let mut result = MultiresSceneModels::default();
+        for entity in found {
+            let Ok((mesh3d, skin, material)) = mesh_entities.get(entity) else {
+                continue;
+            };
+            let Some(mesh) = meshes.get(&mesh3d.0) else {
+                continue;
+            };
+            if mesh.has_morph_targets() {
+                if !cache.warned_morph {
+                    warn!(
+                        "meshes with morph targets stay conventional: they count against the polygon budget at full detail"
+                    );
+                    cache.warned_morph = true;
+                }
+                commands.entity(entity).insert(CountInBudget);
+                result.fixed.push(entity);
+                continue;
+            }
+            let key = (mesh3d.0.id(), skin.map(|s| s.inverse_bindposes.id()));
+            let built = cache
+                .built
+                .entry(key)
+                .or_insert_with(|| {
+                    let asset = from_bevy_mesh(mesh)
+                        .map_err(super::MultiresError::from)
+                        .and_then(|indexed| match skin {
+                            Some(skin) => {
+                                let ib = bindposes
+                                    .get(&skin.inverse_bindposes)
+                                    .map(|b| b.to_vec())
+                                    .unwrap_or_default();
+                                MultiresMesh::from_skinned(&indexed, &ib, options.rigid_delta)
+                            }
+                            None => options
+                                .static_partition
+                                .partition(&indexed)
+                                .map_err(super::MultiresError::from)
+                                .and_then(|p| MultiresMesh::from_indexed(&indexed, &p)),
+                        });
+                    match asset {
+                        Ok(asset) => {
+                            let more = asset.skin().map_or(0, |s| s.more_than_two());
+                            Built::Ok(multires.add(asset), more)
+                        }
+                        Err(e) => {
+                            warn!("a mesh stays conventional (fixed cost): {e}");
+                            Built::Failed
+                        }
+                    }
+                })
+                .clone();
+            let Built::Ok(handle, more_than_two) = built else {
+                commands.entity(entity).insert(CountInBudget);
+                result.fixed.push(entity);
+                continue;
+            };
+            let source = MultiresSourceMesh(mesh3d.0.clone());
+            match skin {
+                Some(skin) => {
+                    result.more_than_two += more_than_two;
+                    let mut model = commands.spawn((
+                        MultiresModel(handle),
+                        MultiresSkin {
+                            joints: skin.joints.clone(),
+                        },
+                        Transform::IDENTITY,
+                        ChildOf(entity),
+                    ));
+                    if let Some(material) = material {
+                        model.insert(material.clone());
+                    }
+                    result.skinned.push(model.id());
+                    commands.entity(entity).remove::<Mesh3d>().insert(source);
+                }
+                None => {
+                    commands
+                        .entity(entity)
+                        .remove::<Mesh3d>()
+                        .insert((source, MultiresModel(handle)));
+                    result.rigid.push(entity);
+                }
+            }
+        }
+        if result.more_than_two > 0 {
+            info!(
+                "{} skinned vertices have more than two influences: they join the region of their \
+                 two largest and blend with all of them",
+                result.more_than_two
+            );
+        }
+        commands.entity(root).insert(result);
+    }
+}

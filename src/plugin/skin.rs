@@ -1,0 +1,488 @@
+//! Skinned multiresolution models (ASLOD section 5): the binding stored in the asset, the
+//! per-instance deformation state, and the `Deform` step.
+//!
+//! Spaces: `G_j` is joint `j`'s `GlobalTransform`, `IB_j` its inverse bind matrix and `G_R`
+//! the model root's `GlobalTransform`. Bevy's own skinning puts a vertex at
+//! `Σ wₖ G_jₖ IB_jₖ p`. Here:
+//! - a rigid region of bone `b` is a child of `b`'s joint entity and stores `IB_b p`: the
+//!   joint's transform places it, nothing is recomputed while it animates;
+//! - a deformable region is a child of the model root and stores `G_R⁻¹ Σ wₖ G_jₖ IB_jₖ p`,
+//!   recomputed for the vertices its cache refers to when one of its joints moved or its
+//!   cache changed;
+//! - the few vertices of *other* regions that a region's border triangles use are placed the
+//!   way their own region places them (a rigid vertex by its bone alone), converted into the
+//!   drawing region's space, so both sides of a border put a shared vertex at one position.
+
+use super::{MultiresError, MultiresMesh};
+use crate::budget::Obb;
+use crate::mesh::{IndexedMesh, weld_positions};
+use crate::multires::BuildOptions;
+use crate::regions::{Partition, RegionCaches, RegionMesh};
+use crate::skin::{Influences, SkinRegionKind, blend, decompose};
+use bevy::prelude::*;
+use bevy::tasks::{ComputeTaskPool, ParallelSliceMut, TaskPool};
+use glam::{Affine3A, Mat3, Mat4, Vec3};
+use std::sync::Arc;
+
+/// The skeleton binding of a skinned [`MultiresMesh`]: what each region is and how its
+/// vertices are placed. Built by [`MultiresMesh::from_skinned`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkinBinding {
+    /// Per region: rigid on one bone, or deformable between two.
+    kinds: Vec<SkinRegionKind>,
+    /// Per region, per local vertex: the influences that place it. A vertex of a rigid
+    /// region has its bone alone, with weight 1.
+    local: Vec<Influences>,
+    /// Per region: the joints its local vertices depend on, sorted, without repeats.
+    region_joints: Vec<Vec<u16>>,
+    /// One inverse bind matrix per joint.
+    inverse_bindposes: Vec<Mat4>,
+    /// Vertices with more than two influences (they blend with all of them).
+    more_than_two: usize,
+    /// Vertices whose weights were renormalised or whose unused slots were cleared.
+    normalised: usize,
+}
+
+impl SkinBinding {
+    /// Per region: rigid or deformable, and its bones.
+    #[inline]
+    #[must_use]
+    pub fn kinds(&self) -> &[SkinRegionKind] {
+        &self.kinds
+    }
+
+    /// Number of joints the skin refers to.
+    #[inline]
+    #[must_use]
+    pub fn joint_count(&self) -> usize {
+        self.inverse_bindposes.len()
+    }
+
+    /// The inverse bind matrices, one per joint.
+    #[inline]
+    #[must_use]
+    pub fn inverse_bindposes(&self) -> &[Mat4] {
+        &self.inverse_bindposes
+    }
+
+    /// Vertices that had more than two influences: they join the region of their two
+    /// largest and blend with all of them.
+    #[inline]
+    #[must_use]
+    pub fn more_than_two(&self) -> usize {
+        self.more_than_two
+    }
+
+    /// Vertices whose weights were normalised on import (they did not sum to one, or named
+    /// a joint out of range with a zero weight).
+    #[inline]
+    #[must_use]
+    pub fn normalised(&self) -> usize {
+        self.normalised
+    }
+
+    /// The influences that place region `region`'s local vertices (rigid ones by their bone
+    /// alone).
+    ///
+    /// # Panics
+    /// When `region` is out of range.
+    #[inline]
+    #[must_use]
+    pub fn local_influences(&self, region: usize) -> &Influences {
+        &self.local[region]
+    }
+
+    /// Rigid regions: how many, and deformable regions: how many.
+    #[must_use]
+    pub fn rigid_deformable_counts(&self) -> (usize, usize) {
+        let rigid = self
+            .kinds
+            .iter()
+            .filter(|k| matches!(k, SkinRegionKind::Rigid { .. }))
+            .count();
+        (rigid, self.kinds.len() - rigid)
+    }
+}
+
+impl MultiresMesh {
+    /// Builds a skinned multiresolution mesh: regions by influence (a vertex whose dominant
+    /// weight is at least `1 − rigid_delta` goes to its bone's rigid region, any other to
+    /// the deformable region of its two largest influences), one progressive sequence per
+    /// region, and the binding the plugin needs to animate it.
+    ///
+    /// `mesh` must carry joints and weights (glTF `JOINTS_0`/`WEIGHTS_0`) in bind space;
+    /// `inverse_bindposes` has one matrix per joint. Weights that do not sum to one are
+    /// normalised, with a warning.
+    ///
+    /// # Errors
+    /// [`MultiresError::NotSkinned`] for a mesh without joints or weights,
+    /// [`MultiresError::Skin`] for bad influences (negative, NaN, all zero, a joint out of
+    /// range, no joints), and the errors of [`from_indexed`](Self::from_indexed).
+    pub fn from_skinned(
+        mesh: &IndexedMesh,
+        inverse_bindposes: &[Mat4],
+        rigid_delta: f32,
+    ) -> Result<Self, MultiresError> {
+        let (Some(joints), Some(weights)) = (&mesh.joints, &mesh.weights) else {
+            return Err(MultiresError::NotSkinned);
+        };
+        if let Some(joint) = inverse_bindposes.iter().position(|m| !m.is_finite()) {
+            return Err(MultiresError::NonFiniteBindpose { joint });
+        }
+        let (influences, report) = Influences::new(joints, weights, inverse_bindposes.len())?;
+        let normalised = report.renormalised + report.unused_slots_cleared;
+        if normalised > 0 {
+            warn!(
+                "{} skinned vertices had weights not summing to one and {} named an unused joint \
+                 out of range: normalised",
+                report.renormalised, report.unused_slots_cleared
+            );
+        }
+        let decomposition = decompose(&mesh.positions, &influences, rigid_delta);
+        let (partition, _) = Partition::from_ids(mesh, &decomposition.region_of)?;
+        // `from_ids` moves seam copies to the region of the first vertex at their position
+        // and renumbers the ids in increasing order: follow both to find each region's kind.
+        let weld = weld_positions(&mesh.positions);
+        let mut kinds = vec![None; partition.region_count()];
+        for (v, &r) in partition.region_of().iter().enumerate() {
+            let original = decomposition.region_of[weld.remap[v] as usize] as usize;
+            kinds[r as usize] = Some(decomposition.kinds[original]);
+        }
+        let kinds: Vec<SkinRegionKind> = kinds
+            .into_iter()
+            .map(|k| k.unwrap_or(SkinRegionKind::Rigid { bone: 0 }))
+            .collect();
+        let regions = RegionMesh::build(mesh, &partition, &BuildOptions::default())?;
+
+        // How each source vertex is placed: by its rigid region's bone, or by all its
+        // influences.
+        let placed = |g: usize| -> ([u16; 4], [f32; 4]) {
+            match kinds[partition.region_of()[g] as usize] {
+                SkinRegionKind::Rigid { bone } => ([bone, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
+                SkinRegionKind::Deformable { .. } => (influences.joints[g], influences.weights[g]),
+            }
+        };
+        let mut local = Vec::with_capacity(kinds.len());
+        let mut region_joints = Vec::with_capacity(kinds.len());
+        for region in regions.regions() {
+            let (joints, weights): (Vec<_>, Vec<_>) = region
+                .global_vertices()
+                .iter()
+                .map(|&g| placed(g as usize))
+                .unzip();
+            let mut used: Vec<u16> = joints
+                .iter()
+                .zip(&weights)
+                .flat_map(|(j, w)| j.iter().zip(w).filter(|(_, w)| **w > 0.0).map(|(j, _)| *j))
+                .collect();
+            used.sort_unstable();
+            used.dedup();
+            region_joints.push(used);
+            local.push(Influences { joints, weights });
+        }
+        let binding = SkinBinding {
+            kinds,
+            local,
+            region_joints,
+            inverse_bindposes: inverse_bindposes.to_vec(),
+            more_than_two: decomposition.more_than_two,
+            normalised,
+        };
+        let mut asset = Self::from_regions(regions);
+        asset.skin = Some(Arc::new(binding));
+        Ok(asset)
+    }
+
+    /// The skeleton binding, for a mesh built by [`from_skinned`](Self::from_skinned).
+    #[inline]
+    #[must_use]
+    pub fn skin(&self) -> Option<&Arc<SkinBinding>> {
+        self.skin.as_ref()
+    }
+}
+
+/// The joints of a skinned [`MultiresModel`](super::MultiresModel), in the skin's joint
+/// order (as in Bevy's `SkinnedMesh::joints`). A skinned model without it is drawn in its
+/// bind pose, with a warning.
+#[derive(Component, Clone, Debug, Default, PartialEq, Eq)]
+pub struct MultiresSkin {
+    /// The joint entities.
+    pub joints: Vec<Entity>,
+}
+
+/// Per-region deformation state of one instance.
+#[derive(Debug, Default)]
+pub(crate) struct RegionSkin {
+    /// The region's entity.
+    pub(crate) entity: Option<Entity>,
+    /// The region's current index buffer (local vertices).
+    pub(crate) indices: Vec<u32>,
+    /// Local vertices `indices` refers to, each once.
+    pub(crate) referenced: Vec<u32>,
+    /// Local vertices written this frame (a subset of `referenced`).
+    pub(crate) written: Vec<u32>,
+    /// Deformed positions and normals, in the region entity's space.
+    pub(crate) positions: Vec<Vec3>,
+    pub(crate) normals: Vec<Vec3>,
+    /// `stamp[v] == generation` marks `v` as referenced.
+    stamp: Vec<u32>,
+    generation: u32,
+    pub(crate) indices_changed: bool,
+}
+
+impl RegionSkin {
+    fn refresh_referenced(&mut self, own_vertices: usize, rigid: bool) {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.stamp.fill(0);
+            self.generation = 1;
+        }
+        self.referenced.clear();
+        for &v in &self.indices {
+            let Some(s) = self.stamp.get_mut(v as usize) else {
+                continue;
+            };
+            if *s != self.generation {
+                *s = self.generation;
+                // A rigid region's own vertices never change: only its foreign ones do.
+                if !rigid || v as usize >= own_vertices {
+                    self.referenced.push(v);
+                }
+            }
+        }
+    }
+}
+
+/// The deformation state of a skinned instance.
+#[derive(Debug)]
+pub(crate) struct SkinState {
+    pub(crate) binding: Arc<SkinBinding>,
+    /// `S_j = G_R⁻¹ G_j IB_j`: skinning matrices in the model root's space.
+    matrices: Vec<Mat4>,
+    /// Per joint: whether `S_j` changed this frame.
+    moved: Vec<bool>,
+    /// Per joint: `G_j`.
+    joint_globals: Vec<Affine3A>,
+    /// `G_R`.
+    root_global: Affine3A,
+    /// Per region: its box in world space this frame.
+    pub(crate) world_obbs: Vec<Obb>,
+    pub(crate) regions: Vec<RegionSkin>,
+    first_frame: bool,
+}
+
+impl SkinState {
+    pub(crate) fn new(binding: Arc<SkinBinding>, regions: &RegionMesh) -> Self {
+        let joints = binding.joint_count();
+        let region_state = regions
+            .regions()
+            .iter()
+            .map(|region| {
+                let n = region.global_vertices().len();
+                let mesh = region.progressive_mesh().mesh();
+                RegionSkin {
+                    positions: mesh.positions.clone(),
+                    normals: mesh.normals.clone().unwrap_or_else(|| vec![Vec3::Y; n]),
+                    stamp: vec![0; n],
+                    ..default()
+                }
+            })
+            .collect();
+        Self {
+            binding,
+            matrices: vec![Mat4::IDENTITY; joints],
+            moved: vec![true; joints],
+            joint_globals: vec![Affine3A::IDENTITY; joints],
+            root_global: Affine3A::IDENTITY,
+            world_obbs: Vec::new(),
+            regions: region_state,
+            first_frame: true,
+        }
+    }
+
+    /// Reads the joints' and the root's global transforms: skinning matrices, which joints
+    /// moved, and every region's world box.
+    pub(crate) fn update_matrices(
+        &mut self,
+        root: &GlobalTransform,
+        joints: &[Entity],
+        globals: &Query<&GlobalTransform>,
+        obbs: &[Obb],
+    ) -> bool {
+        self.root_global = root.affine();
+        let root_inv = Mat4::from(self.root_global.inverse());
+        let mut missing = false;
+        for (j, ib) in self.binding.inverse_bindposes.iter().enumerate() {
+            let global = match joints.get(j).map(|&e| globals.get(e)) {
+                Some(Ok(g)) => g.affine(),
+                _ => {
+                    missing = true;
+                    self.joint_globals[j]
+                }
+            };
+            self.joint_globals[j] = global;
+            let s = root_inv * Mat4::from(global) * *ib;
+            self.moved[j] = self.first_frame || s != self.matrices[j];
+            self.matrices[j] = s;
+        }
+        self.first_frame = false;
+        let root = Mat4::from(self.root_global);
+        self.world_obbs.clear();
+        for (r, kind) in self.binding.kinds.iter().enumerate() {
+            let Some(obb) = obbs.get(r) else { continue };
+            let at = |bone: u16| {
+                let m = root
+                    * self
+                        .matrices
+                        .get(bone as usize)
+                        .copied()
+                        .unwrap_or_default();
+                obb.transformed(&Affine3A::from_mat4(m))
+            };
+            self.world_obbs.push(match *kind {
+                SkinRegionKind::Rigid { bone } => at(bone),
+                SkinRegionKind::Deformable { bones: [a, b] } => enclose(&at(a), &at(b)),
+            });
+        }
+        missing
+    }
+}
+
+/// A box with `a`'s axes that holds both `a` and `b`: cheap and conservative, for a
+/// deformable region whose vertices lie between its two bones' placements.
+fn enclose(a: &Obb, b: &Obb) -> Obb {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for p in a.corners().into_iter().chain(b.corners()) {
+        let local = a.axes.transpose() * (p - a.center);
+        lo = lo.min(local);
+        hi = hi.max(local);
+    }
+    Obb {
+        center: a.center + a.axes * ((lo + hi) * 0.5),
+        axes: a.axes,
+        half_extents: (hi - lo) * 0.5,
+    }
+}
+
+/// What the region meshes of a skinned instance start with: rigid regions in their bone's
+/// space (`IB_b p`, normals by the inverse transpose), deformable ones as the source.
+pub(crate) fn initial_region_mesh(
+    binding: &SkinBinding,
+    regions: &RegionMesh,
+    region: usize,
+) -> IndexedMesh {
+    let source = regions.regions()[region].progressive_mesh().mesh();
+    let mut mesh = IndexedMesh {
+        joints: None,
+        weights: None,
+        ..source.clone()
+    };
+    if let SkinRegionKind::Rigid { bone } = binding.kinds[region]
+        && let Some(ib) = binding.inverse_bindposes.get(bone as usize)
+    {
+        let normal_matrix = Mat3::from_mat4(*ib).inverse().transpose();
+        for p in &mut mesh.positions {
+            *p = ib.transform_point3(*p);
+        }
+        if let Some(normals) = &mut mesh.normals {
+            for n in normals {
+                *n = (normal_matrix * *n).normalize_or(*n);
+            }
+        }
+    }
+    mesh
+}
+
+/// One region's work in `Deform`.
+struct Job<'a> {
+    region: &'a mut RegionSkin,
+    influences: &'a Influences,
+    source: &'a IndexedMesh,
+    matrices: &'a [Mat4],
+    /// For a rigid region: root space -> its joint's space.
+    to_local: Option<Affine3A>,
+}
+
+impl Job<'_> {
+    fn run(&mut self) {
+        let r = &mut *self.region;
+        r.written.clear();
+        r.written.extend_from_slice(&r.referenced);
+        blend(
+            self.matrices,
+            &self.source.positions,
+            self.source.normals.as_deref(),
+            self.influences,
+            &r.written,
+            &mut r.positions,
+            Some(&mut r.normals),
+        );
+        if let Some(to_local) = self.to_local {
+            let normal_matrix = Mat3::from(to_local.matrix3).inverse().transpose();
+            for &v in &r.written {
+                let v = v as usize;
+                r.positions[v] = to_local.transform_point3(r.positions[v]);
+                r.normals[v] = (normal_matrix * r.normals[v]).normalize_or(r.normals[v]);
+            }
+        }
+    }
+}
+
+/// `Deform` for every skinned instance: refresh the index buffers of regions whose cache
+/// changed, then blend, in parallel over regions on the compute task pool, the vertices of
+/// each region whose joints moved or whose buffer changed. Returns the vertices blended.
+pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)]) -> usize {
+    let mut jobs: Vec<Job<'_>> = Vec::new();
+    for (caches, regions, skin) in instances.iter_mut() {
+        let skin = &mut **skin;
+        for (r, state) in skin.regions.iter_mut().enumerate() {
+            let region = &regions.regions()[r];
+            let rigid = matches!(skin.binding.kinds[r], SkinRegionKind::Rigid { .. });
+            if caches.is_dirty(r) {
+                caches.write_indices(regions, r, &mut state.indices);
+                state.indices_changed = true;
+                state.refresh_referenced(region.own_vertices, rigid);
+            }
+            let moved = skin.binding.region_joints[r]
+                .iter()
+                .any(|&j| skin.moved.get(j as usize).copied().unwrap_or(false));
+            if !(moved || state.indices_changed) || state.referenced.is_empty() {
+                state.written.clear();
+                continue;
+            }
+            let to_local = match skin.binding.kinds[r] {
+                SkinRegionKind::Rigid { bone } => {
+                    let joint = skin
+                        .joint_globals
+                        .get(bone as usize)
+                        .copied()
+                        .unwrap_or(Affine3A::IDENTITY);
+                    Some(joint.inverse() * skin.root_global)
+                }
+                SkinRegionKind::Deformable { .. } => None,
+            };
+            jobs.push(Job {
+                region: state,
+                influences: &skin.binding.local[r],
+                source: region.progressive_mesh().mesh(),
+                matrices: &skin.matrices,
+                to_local,
+            });
+        }
+    }
+    let blended: usize = jobs.iter().map(|j| j.region.referenced.len()).sum();
+    if jobs.len() > 1 {
+        let pool = ComputeTaskPool::get_or_init(TaskPool::default);
+        jobs.par_splat_map_mut(pool, None, |_, chunk| {
+            for job in chunk {
+                job.run();
+            }
+        });
+    } else {
+        for job in &mut jobs {
+            job.run();
+        }
+    }
+    blended
+}
