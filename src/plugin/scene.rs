@@ -91,10 +91,20 @@ pub(crate) fn convert_scenes(
         Option<&MeshMaterial3d<StandardMaterial>>,
     )>,
     meshes: Res<Assets<Mesh>>,
-    bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
+    bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
     mut multires: ResMut<Assets<MultiresMesh>>,
     mut cache: ResMut<SceneAssetCache>,
 ) {
+    // Apps without skinning (no `Assets<SkinnedMeshInverseBindposes>`) can still convert
+    // unskinned scenes.
+    let Some(bindposes) = bindposes else {
+        if !scenes.is_empty() {
+            warn_once!(
+                "MultiresScene needs Assets<SkinnedMeshInverseBindposes> (Bevy's mesh plugin)"
+            );
+        }
+        return;
+    };
     for (root, options) in &scenes {
         let found: Vec<Entity> = children
             .iter_descendants(root)
