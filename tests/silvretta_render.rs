@@ -3,82 +3,18 @@
 //! driver is installed.
 #![cfg(feature = "bevy")]
 
-use std::path::{Path, PathBuf};
+mod example_run;
+
+use example_run::{example_binary, require_vulkan, varied_fraction};
+use std::path::Path;
 use std::process::Command;
-
-/// The example binary next to this test's own (`target/<profile>/examples/silvretta`),
-/// built with cargo when it is missing.
-fn example_binary() -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable path");
-    // target/<profile>/deps/silvretta_render-<hash>
-    let profile_dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .expect("test binary lies in target/<profile>/deps");
-    let binary = profile_dir
-        .join("examples")
-        .join(format!("silvretta{}", std::env::consts::EXE_SUFFIX));
-    let status = Command::new(env!("CARGO"))
-        .args(["build", "--example", "silvretta", "--features", "bevy"])
-        .args(if profile_dir.ends_with("release") {
-            &["--release"][..]
-        } else {
-            &[][..]
-        })
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .status()
-        .expect("run cargo build --example silvretta");
-    assert!(status.success(), "cargo build --example silvretta failed");
-    assert!(binary.exists(), "{} was not built", binary.display());
-    binary
-}
-
-/// Whether a Vulkan driver (ICD) is installed.
-fn vulkan_available() -> bool {
-    if std::env::var_os("VK_ICD_FILENAMES").is_some()
-        || std::env::var_os("VK_DRIVER_FILES").is_some()
-    {
-        return true;
-    }
-    [
-        "/usr/share/vulkan/icd.d",
-        "/etc/vulkan/icd.d",
-        "/usr/local/share/vulkan/icd.d",
-    ]
-    .iter()
-    .filter_map(|d| std::fs::read_dir(d).ok())
-    .flatten()
-    .flatten()
-    .any(|e| e.path().extension().is_some_and(|x| x == "json"))
-}
-
-/// The fraction of a PNG's pixels that differ from its first pixel (0 for a blank frame).
-fn varied_fraction(path: &Path) -> f64 {
-    let image = bevy::image::Image::from_buffer(
-        &std::fs::read(path).expect("read png"),
-        bevy::image::ImageType::Extension("png"),
-        bevy::image::CompressedImageFormats::NONE,
-        true,
-        bevy::image::ImageSampler::Default,
-        bevy::asset::RenderAssetUsages::default(),
-    )
-    .expect("decode png");
-    let data = image.data.expect("pixel data");
-    let first = &data[..4];
-    let pixels = data.chunks_exact(4).count();
-    let differing = data.chunks_exact(4).filter(|p| p != &first).count();
-    differing as f64 / pixels as f64
-}
 
 #[test]
 fn silvretta_renders_offscreen_with_counts_under_budget() {
-    if !vulkan_available() {
-        eprintln!(
-            "SKIPPED silvretta_render: no Vulkan driver found (install mesa-vulkan-drivers for lavapipe)"
-        );
+    if !require_vulkan("silvretta_render") {
         return;
     }
-    let binary = example_binary();
+    let binary = example_binary("silvretta");
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("silvretta-shots");
     let _ = std::fs::remove_dir_all(&dir);
     let output = Command::new(&binary)

@@ -310,3 +310,67 @@ fn robot_dance_matches_reference_skinning() {
 fn mannequin_matches_reference_skinning_at_full_and_reduced_detail() {
     check_against_reference(ASSETS, MANNEQUIN, "Aerobics", true);
 }
+
+/// Issue 6's invariant while animated: at every level the budget gives (from the coarsest
+/// to full detail) and at several times of the dance, the mannequin's drawn triangles,
+/// gathered over all its regions (rigid and deformable) in source-vertex numbering, form a
+/// closed surface (every edge used exactly twice, in opposite directions), every source
+/// vertex is drawn at one place in the world whichever region draws it (no cracks), and
+/// the total stays within P.
+#[test]
+fn mannequin_stays_watertight_while_animated_at_every_level() {
+    let mut app = app(1_000_000, ASSETS);
+    let (root, node, player, length) = spawn_character(&mut app, MANNEQUIN, "Aerobics");
+    let (lo, hi) = app
+        .world_mut()
+        .query::<&MultiresInstance>()
+        .iter(app.world())
+        .flat_map(|i| i.regions().regions().iter())
+        .fold((0, 0), |(lo, hi), r| {
+            (lo + r.min_triangles(), hi + r.max_triangles())
+        });
+    let mut checked = 0;
+    for (step, fraction) in [0.0f32, 0.02, 0.1, 0.3, 0.7, 1.0].into_iter().enumerate() {
+        let budget = lo as u32 + ((hi - lo) as f32 * fraction) as u32;
+        app.world_mut().resource_mut::<PolygonBudget>().total = budget.max(1);
+        for k in 0..3 {
+            let t = (step as f32 * 0.37 + k as f32 * 0.29) % 1.0 * length;
+            seek(&mut app, player, node, t);
+            let stats = *app.world().resource::<AslodStats>();
+            assert!(
+                stats.triangles + u64::from(stats.fixed_cost) <= u64::from(budget.max(1)),
+                "P = {budget}: {} triangles",
+                stats.triangles
+            );
+            let (height, triangles, pairs) = compare(&mut app, root);
+            assert_eq!(triangles as u64, stats.triangles);
+            // One place per source vertex.
+            let mut place: std::collections::HashMap<u32, Vec3> = Default::default();
+            for &(v, _, drawn) in &pairs {
+                let first = *place.entry(v).or_insert(drawn);
+                assert!(
+                    first.distance(drawn) <= 1e-5 * height,
+                    "P = {budget}, t = {t}: vertex {v} drawn at {first} and {drawn}"
+                );
+            }
+            // Closed: each directed edge once, and its reverse once.
+            let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
+            for tri in pairs.chunks_exact(3) {
+                let (a, b, c) = (tri[0].0, tri[1].0, tri[2].0);
+                for e in [(a, b), (b, c), (c, a)] {
+                    *edges.entry(e).or_default() += 1;
+                }
+            }
+            for (&(a, b), &n) in &edges {
+                assert_eq!(n, 1, "P = {budget}: edge {a}-{b} used {n} times one way");
+                assert_eq!(
+                    edges.get(&(b, a)),
+                    Some(&1),
+                    "P = {budget}, t = {t}: edge {a}-{b} has no twin (a crack or a hole)"
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 18);
+}

@@ -52,6 +52,7 @@ mod skin;
 mod systems;
 
 pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
+pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
 pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
 pub use skin::{MultiresSkin, SkinBinding};
 
@@ -121,8 +122,10 @@ impl Plugin for AslodPlugin {
     fn build(&self, app: &mut App) {
         app.init_asset::<MultiresMesh>()
             .register_type::<PolygonBudget>()
+            .register_type::<FullDetail>()
             .insert_resource(self.budget.clone())
             .insert_resource(AslodOverlay(self.overlay))
+            .init_resource::<FullDetail>()
             .init_resource::<AslodStats>()
             .init_resource::<systems::AslodScratch>()
             .init_resource::<scene::SceneAssetCache>()
@@ -195,6 +198,14 @@ impl PolygonBudget {
         }
     }
 }
+
+/// The "no LOD" switch: while it is `true`, every region of every model is kept at its full
+/// detail, whatever the budget and wherever the camera looks (regions out of view too), so an
+/// app can compare the same scene with and without LOD. Skinned regions still blend only
+/// when their bones move. Default `false`.
+#[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Resource, Default)]
+pub struct FullDetail(pub bool);
 
 /// The user priority `c` of a model: its regions weigh `c · A`. Without it `c = 1`; `0`
 /// keeps the model at its coarsest level. Negative or non-finite values count as `0`.
@@ -314,8 +325,9 @@ impl MultiresInstance {
 #[derive(Resource, Clone, Copy, Debug, PartialEq)]
 pub struct AslodViewport(pub Vec2);
 
-/// Whether the debug overlay draws each region's world box (needs `GizmoPlugin`, part of
-/// `DefaultPlugins`), coloured from blue (coarsest) to red (full detail).
+/// Whether the debug overlay is on (ASLOD Figure 10): each region's world box, coloured from
+/// blue (coarsest) to red (full detail), and its triangle count as a label ([`OverlayLabel`]
+/// UI nodes, at most [`MAX_OVERLAY_LABELS`]). Needs `GizmoPlugin`, part of `DefaultPlugins`.
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AslodOverlay(pub bool);
 
@@ -340,7 +352,9 @@ pub struct AslodStats {
     pub allocation_ms: f64,
     /// Milliseconds in `SelectLod` and `Upload`.
     pub update_ms: f64,
-    /// Milliseconds in `Deform` (skinned models; `0` when no joint moved).
+    /// Milliseconds in `Upload` alone (part of `update_ms`).
+    pub upload_ms: f64,
+    /// Milliseconds in `Deform` (skinned models; near `0` when no joint moved).
     pub deform_ms: f64,
     /// Vertices blended in `Deform`.
     pub vertices_blended: usize,

@@ -1,20 +1,34 @@
-//! The debug overlay: every region's world box, drawn with gizmos.
+//! The debug overlay (ASLOD Figure 10): every region's world box, drawn with gizmos, and its
+//! triangle count as a screen-space label.
 
 use super::{AslodOverlay, MultiresInstance};
+use crate::budget::Obb;
+use bevy::camera::Camera;
 use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
 
-/// Adds [`draw_overlay`] when gizmos are available (so headless apps without them work).
+/// The most labels shown at once (the nearest regions win), so a crowd stays readable.
+pub const MAX_OVERLAY_LABELS: usize = 256;
+
+/// Adds the overlay systems when gizmos are available (so headless apps without them work).
 pub(super) fn add_if_gizmos(app: &mut App) {
     if app.world().contains_resource::<GizmoConfigStore>() {
         app.add_systems(
             PostUpdate,
-            draw_overlay
+            (draw_overlay, place_labels)
                 .after(super::AslodSystems::Upload)
                 .run_if(|overlay: Res<AslodOverlay>| overlay.0),
+        )
+        .add_systems(
+            PostUpdate,
+            hide_labels.run_if(|overlay: Res<AslodOverlay>| !overlay.0),
         );
     }
 }
+
+/// A UI text node of the overlay that shows one region's triangle count.
+#[derive(Component, Debug, Default)]
+pub struct OverlayLabel;
 
 /// The 12 edges of a box, as corner pairs in [`Obb::corner`](crate::budget::Obb::corner)'s
 /// numbering: corners that differ in one bit.
@@ -33,22 +47,117 @@ const EDGES: [(usize, usize); 12] = [
     (3, 7),
 ];
 
-/// Draws each region's world box, blue at its coarsest level to red at full detail.
-fn draw_overlay(models: Query<(&MultiresInstance, &GlobalTransform)>, mut gizmos: Gizmos) {
-    for (instance, transform) in &models {
-        let affine = transform.affine();
-        for (r, region) in instance.regions.regions().iter().enumerate() {
-            let corners = instance.obbs[r].transformed(&affine).corners();
+/// Every region's world box and how far its level is between coarsest (0) and full (1).
+fn region_boxes<'a>(
+    instance: &'a MultiresInstance,
+    transform: &'a GlobalTransform,
+) -> impl Iterator<Item = (Obb, f32, usize)> + 'a {
+    let affine = transform.affine();
+    let skinned = instance.skinned_world_boxes();
+    instance
+        .regions
+        .regions()
+        .iter()
+        .enumerate()
+        .map(move |(r, region)| {
+            // Skinned boxes are already in world space, moved with their bones.
+            let obb = match skinned.and_then(|boxes| boxes.get(r)) {
+                Some(obb) => *obb,
+                None => instance.obbs[r].transformed(&affine),
+            };
             let (lo, hi) = (region.min_triangles(), region.max_triangles());
+            let count = instance.caches.triangle_count(r);
             let t = if hi > lo {
-                instance.caches.triangle_count(r).saturating_sub(lo) as f32 / (hi - lo) as f32
+                count.saturating_sub(lo) as f32 / (hi - lo) as f32
             } else {
                 1.0
             };
+            (obb, t, count)
+        })
+}
+
+/// Draws each region's world box, blue at its coarsest level to red at full detail.
+fn draw_overlay(models: Query<(&MultiresInstance, &GlobalTransform)>, mut gizmos: Gizmos) {
+    for (instance, transform) in &models {
+        for (obb, t, _) in region_boxes(instance, transform) {
+            let corners = obb.corners();
             let color = Color::srgb(t, 0.2, 1.0 - t);
             for (a, b) in EDGES {
                 gizmos.line(corners[a], corners[b], color);
             }
         }
+    }
+}
+
+/// Puts a label with the triangle count at the centre of each region's box, as seen by the
+/// first active camera; the nearest [`MAX_OVERLAY_LABELS`] regions in front of it get one.
+fn place_labels(
+    mut commands: Commands,
+    models: Query<(&MultiresInstance, &GlobalTransform)>,
+    cameras: Query<(&Camera, &GlobalTransform)>,
+    mut labels: Query<(&mut Text, &mut Node, &mut Visibility), With<OverlayLabel>>,
+    mut wanted: Local<Vec<(f32, Vec2, usize)>>,
+) {
+    wanted.clear();
+    let Some((camera, eye)) = cameras.iter().find(|(c, _)| c.is_active) else {
+        return;
+    };
+    for (instance, transform) in &models {
+        for (obb, _, count) in region_boxes(instance, transform) {
+            let Ok(pixel) = camera.world_to_viewport(eye, obb.center) else {
+                continue; // behind the camera or outside the viewport
+            };
+            wanted.push((eye.translation().distance(obb.center), pixel, count));
+        }
+    }
+    wanted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    wanted.truncate(MAX_OVERLAY_LABELS);
+    let mut next = wanted.iter();
+    for (mut text, mut node, mut visibility) in &mut labels {
+        match next.next() {
+            Some(&(_, pixel, count)) => {
+                set_label(&mut text, &mut node, pixel, count);
+                visibility.set_if_neq(Visibility::Inherited);
+            }
+            None => {
+                visibility.set_if_neq(Visibility::Hidden);
+            }
+        }
+    }
+    for &(_, pixel, count) in next {
+        let mut text = Text::default();
+        let mut node = Node {
+            position_type: PositionType::Absolute,
+            ..default()
+        };
+        set_label(&mut text, &mut node, pixel, count);
+        commands.spawn((
+            text,
+            node,
+            TextFont::from_font_size(11.0),
+            TextColor(Color::srgb(1.0, 1.0, 0.3)),
+            OverlayLabel,
+        ));
+    }
+}
+
+fn set_label(text: &mut Text, node: &mut Node, pixel: Vec2, count: usize) {
+    let left = Val::Px(pixel.x);
+    let top = Val::Px(pixel.y);
+    if node.left != left || node.top != top {
+        node.left = left;
+        node.top = top;
+    }
+    // Compare before writing, so unchanged labels are not laid out again.
+    let label = count.to_string();
+    if text.0 != label {
+        text.0 = label;
+    }
+}
+
+/// Hides the labels while the overlay is off.
+fn hide_labels(mut labels: Query<&mut Visibility, With<OverlayLabel>>) {
+    for mut visibility in &mut labels {
+        visibility.set_if_neq(Visibility::Hidden);
     }
 }

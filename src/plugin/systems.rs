@@ -2,7 +2,7 @@
 
 use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
 use super::{
-    AslodStats, AslodSystems, AslodViewport, CountInBudget, LodPriority, LodRegion,
+    AslodStats, AslodSystems, AslodViewport, CountInBudget, FullDetail, LodPriority, LodRegion,
     MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
@@ -242,6 +242,7 @@ fn viewport_size(camera: &Camera, fallback: Option<&AslodViewport>) -> Option<Ve
 #[allow(clippy::too_many_arguments)]
 fn allocate(
     budget: Res<PolygonBudget>,
+    full_detail: Res<FullDetail>,
     viewport: Option<Res<AslodViewport>>,
     cameras: Query<(&Camera, &GlobalTransform, &Projection), With<Camera3d>>,
     mut models: Query<(
@@ -329,22 +330,28 @@ fn allocate(
     stats.fixed_cost = fixed_cost;
 
     let params = budget.params(fixed_cost);
-    match scratch
-        .allocator
-        .allocate(&params, &scratch.inputs, &mut scratch.counts)
-    {
-        Ok(report) => {
-            scratch.warned_budget = false;
-            if report.infeasible {
-                debug!("polygon budget below the sum of the coarsest levels");
+    if full_detail.0 {
+        // No LOD: every region at its full detail, whatever the budget and the view.
+        scratch.counts.clear();
+        scratch.counts.extend(scratch.inputs.iter().map(|i| i.max));
+    } else {
+        match scratch
+            .allocator
+            .allocate(&params, &scratch.inputs, &mut scratch.counts)
+        {
+            Ok(report) => {
+                scratch.warned_budget = false;
+                if report.infeasible {
+                    debug!("polygon budget below the sum of the coarsest levels");
+                }
             }
-        }
-        Err(e) => {
-            if !scratch.warned_budget {
-                warn!("LOD allocation skipped: {e}");
-                scratch.warned_budget = true;
+            Err(e) => {
+                if !scratch.warned_budget {
+                    warn!("LOD allocation skipped: {e}");
+                    scratch.warned_budget = true;
+                }
+                return;
             }
-            return;
         }
     }
     let mut next = scratch.counts.iter();
@@ -526,7 +533,8 @@ fn upload(
         }
     }
     stats.regions_changed = changed;
-    stats.update_ms += start.elapsed().as_secs_f64() * 1e3;
+    stats.upload_ms = start.elapsed().as_secs_f64() * 1e3;
+    stats.update_ms += stats.upload_ms;
     let (triangles, update_ms) = (stats.triangles as f64, stats.update_ms);
     diag.add_measurement(&diagnostics::TRIANGLES, || triangles);
     diag.add_measurement(&diagnostics::UPDATE_MS, || update_ms);

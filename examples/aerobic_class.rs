@@ -1,0 +1,1292 @@
+//! ASLOD section 7 (Figures 9–11): the "aerobic class". Three mannequins dance out of phase
+//! under one budget of 5,000 triangles; the budget moves between them as the camera flies
+//! around and between the dancers, and the frame's triangle count stays constant.
+//!
+//! Controls: `C` switches between the scripted camera and a free one (WASD to fly, Q/E
+//! down/up, Shift faster, drag with the left mouse button to look); Up/Down change the budget
+//! P, Left/Right change α; `L` compares against the same scene without LOD (every region at
+//! full detail); `O` the overlay of region boxes and triangle counts (Figure 10); Space
+//! pauses the dance.
+//!
+//! Options:
+//! - `--model PATH --clip NAME`: another glTF character and clip (default: the project's
+//!   `assets/mannequin.glb` and its first clip, "Aerobics").
+//! - `--count N`: N dancers (a crowd), at the same budget unless `--budget P` says otherwise.
+//! - `--headless --frames N --report DIR`: renders offscreen (an `Image` render target, no
+//!   window), plays the N scripted frames twice, with LOD and without, and writes
+//!   `frames.csv`, `frame_time.png` (Figure 11), `allocation.png`, three screenshots at the
+//!   first, middle and last frame (Figure 9; the middle one with the overlay) and
+//!   `summary.json` to DIR. `--size WIDTHxHEIGHT` sets the offscreen image (default 960x540).
+//!
+//! Every frame of the scripted run is a function of its number: the camera's place and each
+//! dancer's animation time are set from it, so both runs show the same 120 frames.
+
+mod common;
+
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::RenderTarget;
+use bevy::gltf::Gltf;
+use bevy::prelude::*;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::plugin::{
+    AslodOverlay, AslodPlugin, AslodStats, CountInBudget, FullDetail, MultiresInstance,
+    MultiresScene, MultiresSceneModels, PolygonBudget,
+};
+use common::{FlyCamera, fly_camera};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The paper's budget for the aerobic class.
+const BUDGET: u32 = 5_000;
+/// Every dancer is scaled to this height (metres), whatever the model's units.
+const DANCER_HEIGHT: f32 = 1.8;
+/// Metres between neighbouring dancers.
+const SPACING: f32 = 2.0;
+/// Offscreen image size unless `--size` says otherwise.
+const SHOT_SIZE: (u32, u32) = (960, 540);
+/// Frames run before each measured pass, so uploads after a budget switch settle.
+const SETTLE_FRAMES: u32 = 12;
+/// Seconds of dance per scripted frame (120 frames: the mannequin's whole 6 s routine).
+const DANCE_SECONDS_PER_FRAME: f32 = 0.05;
+/// Seconds the interactive scripted camera takes for the whole path.
+const SCRIPT_SECONDS: f32 = 12.0;
+
+fn main() {
+    let args = match Args::parse(std::env::args().skip(1)) {
+        Ok(args) => args,
+        Err(e) => {
+            eprintln!("aerobic_class: {e}\n{USAGE}");
+            std::process::exit(2);
+        }
+    };
+    let (asset_root, file) = match common::split_model_path(&args.model) {
+        Ok(split) => split,
+        Err(e) => {
+            eprintln!("aerobic_class: {e}");
+            std::process::exit(2);
+        }
+    };
+    let mut app = App::new();
+    common::add_default_plugins(
+        &mut app,
+        args.headless,
+        "bevy_aslod: the aerobic class (ASLOD Figures 9-11)",
+        Some(&asset_root),
+    );
+    app.add_plugins(AslodPlugin::default().with_budget(args.budget))
+        .insert_resource(ClearColor(Color::srgb(0.80, 0.84, 0.90)))
+        .insert_resource(GlobalAmbientLight {
+            brightness: 500.0,
+            ..default()
+        })
+        .insert_resource(Class::new(&args, file))
+        .add_systems(Startup, setup)
+        .add_systems(Update, (bind_clip, bind_players, place_dancers).chain());
+    if args.headless {
+        let dir = args
+            .report
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("aerobic-report"));
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            eprintln!("aerobic_class: cannot create {}: {e}", dir.display());
+            std::process::exit(1);
+        }
+        app.insert_resource(Report::new(dir, args.frames, args.size))
+            .add_systems(Last, drive_report);
+    } else {
+        app.insert_resource(Interactive::default()).add_systems(
+            Update,
+            (keys, script_camera, fly_camera, update_label).after(place_dancers),
+        );
+    }
+    app.run();
+}
+
+const USAGE: &str = "usage: aerobic_class [--model PATH] [--clip NAME] [--count N] [--budget P] \
+                     [--headless] [--frames N] [--report DIR] [--size WIDTHxHEIGHT]";
+
+/// Command-line options.
+#[derive(Debug)]
+struct Args {
+    headless: bool,
+    frames: u32,
+    report: Option<PathBuf>,
+    model: PathBuf,
+    clip: Option<String>,
+    count: usize,
+    budget: u32,
+    size: (u32, u32),
+}
+
+impl Args {
+    fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
+        let mut out = Args {
+            headless: false,
+            frames: 120,
+            report: None,
+            model: Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/mannequin.glb"),
+            clip: None,
+            count: 3,
+            budget: BUDGET,
+            size: SHOT_SIZE,
+        };
+        fn number<T: std::str::FromStr>(flag: &str, value: Option<String>) -> Result<T, String> {
+            let value = value.ok_or(format!("{flag} needs a number"))?;
+            value
+                .parse()
+                .map_err(|_| format!("{flag}: not a number: {value}"))
+        }
+        while let Some(arg) = args.next() {
+            match arg.as_str() {
+                "--headless" => out.headless = true,
+                "--frames" => out.frames = number("--frames", args.next())?,
+                "--count" => out.count = number("--count", args.next())?,
+                "--budget" => out.budget = number("--budget", args.next())?,
+                "--report" => {
+                    out.report = Some(args.next().ok_or("--report needs a folder")?.into())
+                }
+                "--model" => out.model = args.next().ok_or("--model needs a path")?.into(),
+                "--clip" => out.clip = Some(args.next().ok_or("--clip needs a name")?),
+                "--size" => {
+                    let size = args.next().ok_or("--size needs WIDTHxHEIGHT")?;
+                    out.size = size
+                        .split_once('x')
+                        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+                        .filter(|&(w, h)| (16..=8192).contains(&w) && (16..=8192).contains(&h))
+                        .ok_or(format!("--size: not WIDTHxHEIGHT (16..=8192): {size}"))?;
+                }
+                other => return Err(format!("unknown argument {other}")),
+            }
+        }
+        if out.frames < 2 {
+            return Err(format!("--frames must be at least 2, not {}", out.frames));
+        }
+        if !(1..=10_000).contains(&out.count) {
+            return Err(format!("--count must be 1..=10000, not {}", out.count));
+        }
+        if out.budget == 0 {
+            return Err("--budget must be positive".into());
+        }
+        Ok(out)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The class: dancers, their clip, their places.
+
+/// A dancer's scene root.
+#[derive(Component)]
+struct Dancer {
+    index: usize,
+}
+
+/// An `AnimationPlayer` bound to a dancer's clip.
+#[derive(Component)]
+struct DancerPlayer {
+    dancer: usize,
+}
+
+#[derive(Component)]
+struct MainCamera;
+
+#[derive(Component)]
+struct Label;
+
+/// The scene's shared state.
+#[derive(Resource)]
+struct Class {
+    file: String,
+    clip_name: Option<String>,
+    gltf: Handle<Gltf>,
+    /// The clip's graph, node and length in seconds, once loaded.
+    clip: Option<(Handle<AnimationGraph>, AnimationNodeIndex, f32)>,
+    /// Where each dancer stands (feet), in metres.
+    layout: Vec<Vec3>,
+    dancers: Vec<Entity>,
+    /// Per dancer, triangles of its conventional (fixed-cost) meshes.
+    fixed: Vec<usize>,
+    /// Dancers are measured, scaled and shown.
+    placed: bool,
+    /// The budget with LOD on (P), kept while LOD is off.
+    budget: u32,
+    lod: bool,
+}
+
+impl Class {
+    fn new(args: &Args, file: String) -> Self {
+        Self {
+            file,
+            clip_name: args.clip.clone(),
+            gltf: Handle::default(),
+            clip: None,
+            layout: layout(args.count),
+            dancers: Vec::new(),
+            fixed: vec![0; args.count],
+            placed: false,
+            budget: args.budget,
+            lod: true,
+        }
+    }
+
+    /// Everything needed to run a scripted frame is there.
+    fn ready(&self) -> bool {
+        self.placed && self.clip.is_some()
+    }
+
+    /// Where the scripted camera is at `u` ∈ [0, 1] of its path.
+    fn camera_at(&self, u: f32) -> Transform {
+        camera_path(&self.layout, u)
+    }
+
+    /// Dancer `i`'s animation time at scripted frame `frame`: out of phase by an equal share
+    /// of the clip.
+    fn dance_time(&self, i: usize, frame: u32) -> f32 {
+        let length = self.clip.as_ref().map_or(1.0, |c| c.2).max(1e-3);
+        let phase = length * i as f32 / self.layout.len() as f32;
+        (phase + frame as f32 * DANCE_SECONDS_PER_FRAME).rem_euclid(length)
+    }
+}
+
+/// Dancers in rows of at most `⌈√N⌉` (three in a line), centred on the origin.
+fn layout(count: usize) -> Vec<Vec3> {
+    let columns = if count <= 3 {
+        count
+    } else {
+        (count as f64).sqrt().ceil() as usize
+    };
+    let rows = count.div_ceil(columns);
+    (0..count)
+        .map(|i| {
+            let (c, r) = (i % columns, i / columns);
+            Vec3::new(
+                (c as f32 - (columns - 1) as f32 * 0.5) * SPACING,
+                0.0,
+                (r as f32 - (rows - 1) as f32 * 0.5) * SPACING,
+            )
+        })
+        .collect()
+}
+
+/// The scripted camera (Figure 9): close on the first dancer, along the line to the last,
+/// back to see the whole class, round the side, and close behind the middle dancer. Each
+/// dancer is near the camera at one time and far or out of view at another.
+fn camera_path(layout: &[Vec3], u: f32) -> Transform {
+    let first = layout[0];
+    let last = layout[layout.len() - 1];
+    let middle = layout[layout.len() / 2];
+    let centre = layout.iter().copied().sum::<Vec3>() / layout.len() as f32;
+    let extent = layout
+        .iter()
+        .map(|p| p.distance(centre))
+        .fold(0.0f32, f32::max)
+        + 1.0;
+    let chest = Vec3::Y * 1.1;
+    // (u, eye, target)
+    let keys = [
+        (0.0, first + Vec3::new(0.35, 1.45, 1.3), first + chest),
+        (0.3, last + Vec3::new(-0.35, 1.45, 1.3), last + chest),
+        (
+            0.55,
+            centre + Vec3::new(0.0, 0.9 + 0.5 * extent, 1.5 + 1.7 * extent),
+            centre + Vec3::Y * 0.9,
+        ),
+        (
+            0.78,
+            centre + Vec3::new(1.0 + extent, 1.6, -0.6),
+            centre + Vec3::Y * 0.9,
+        ),
+        (1.0, middle + Vec3::new(0.3, 1.35, -1.3), middle + chest),
+    ];
+    let u = u.clamp(0.0, 1.0);
+    let k = keys
+        .windows(2)
+        .position(|w| u <= w[1].0)
+        .unwrap_or(keys.len() - 2);
+    let (a, b) = (keys[k], keys[k + 1]);
+    let t = ((u - a.0) / (b.0 - a.0)).clamp(0.0, 1.0);
+    let t = t * t * (3.0 - 2.0 * t);
+    let eye = a.1.lerp(b.1, t);
+    let target = a.2.lerp(b.2, t);
+    Transform::from_translation(eye).looking_at(target, Vec3::Y)
+}
+
+fn setup(
+    mut commands: Commands,
+    asset_server: Res<AssetServer>,
+    mut class: ResMut<Class>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut images: ResMut<Assets<Image>>,
+    report: Option<Res<Report>>,
+) {
+    class.gltf = asset_server.load(class.file.clone());
+    let scene = asset_server.load(GltfAssetLabel::Scene(0).from_asset(class.file.clone()));
+    let dancers: Vec<Entity> = class
+        .layout
+        .iter()
+        .enumerate()
+        .map(|(index, &at)| {
+            commands
+                .spawn((
+                    WorldAssetRoot(scene.clone()),
+                    MultiresScene::default(),
+                    Transform::from_translation(at),
+                    // Shown once measured and scaled (`place_dancers`).
+                    Visibility::Hidden,
+                    Dancer { index },
+                ))
+                .id()
+        })
+        .collect();
+    class.dancers = dancers;
+
+    // The floor: two triangles, charged to the budget like any conventional mesh.
+    let half = class
+        .layout
+        .iter()
+        .map(|p| p.x.abs().max(p.z.abs()))
+        .fold(0.0f32, f32::max)
+        + 12.0;
+    commands.spawn((
+        Mesh3d(meshes.add(Plane3d::default().mesh().size(2.0 * half, 2.0 * half))),
+        MeshMaterial3d(materials.add(StandardMaterial {
+            base_color: Color::srgb(0.42, 0.36, 0.30),
+            perceptual_roughness: 0.8,
+            ..default()
+        })),
+        CountInBudget,
+    ));
+    commands.spawn((
+        DirectionalLight {
+            illuminance: 8_000.0,
+            shadow_maps_enabled: false,
+            ..default()
+        },
+        Transform::from_xyz(2.0, 4.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    let mut camera = commands.spawn((
+        Camera3d::default(),
+        // Lavapipe shades on the CPU: without multisampling the frame is cheaper by more
+        // than the triangles it draws.
+        Msaa::Off,
+        class.camera_at(0.0),
+        MainCamera,
+        FlyCamera {
+            enabled: false,
+            speed: 2.5,
+        },
+    ));
+    if let Some(report) = report {
+        let image = Image::new_target_texture(
+            report.size.0,
+            report.size.1,
+            TextureFormat::Rgba8Unorm,
+            Some(TextureFormat::Rgba8UnormSrgb),
+        );
+        let handle = images.add(image);
+        camera.insert(RenderTarget::Image(handle.clone().into()));
+        commands.insert_resource(ShotTarget(handle));
+        info!(
+            "offscreen: {} frames with and without LOD, report in {}",
+            report.frames,
+            report.dir.display()
+        );
+    }
+    commands.spawn((
+        Text::new(""),
+        TextFont::from_font_size(15.0),
+        TextColor(Color::BLACK),
+        Node {
+            position_type: PositionType::Absolute,
+            top: px(8),
+            left: px(8),
+            ..default()
+        },
+        Label,
+    ));
+}
+
+/// Finds the clip once the glTF is loaded and builds its animation graph.
+fn bind_clip(
+    mut class: ResMut<Class>,
+    gltfs: Res<Assets<Gltf>>,
+    clips: Res<Assets<AnimationClip>>,
+    mut graphs: ResMut<Assets<AnimationGraph>>,
+    asset_server: Res<AssetServer>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    if class.clip.is_some() {
+        return;
+    }
+    if let Some(bevy::asset::LoadState::Failed(e)) = asset_server.get_load_state(&class.gltf) {
+        error!("cannot load {}: {e}", class.file);
+        exit.write(AppExit::error());
+        return;
+    }
+    let Some(gltf) = gltfs.get(&class.gltf) else {
+        return;
+    };
+    let clip = match common::pick_clip(gltf, &class.file, class.clip_name.as_deref()) {
+        Ok(clip) => clip,
+        Err(e) => {
+            error!("{e}");
+            exit.write(AppExit::error());
+            return;
+        }
+    };
+    let Some(length) = clips.get(&clip).map(AnimationClip::duration) else {
+        return;
+    };
+    let (graph, node) = AnimationGraph::from_clip(clip);
+    class.clip = Some((graphs.add(graph), node, length));
+    info!("dancing {:?} ({length:.2} s)", class.clip_name);
+}
+
+/// Gives each dancer's `AnimationPlayer` the clip, out of phase with the others.
+fn bind_players(
+    mut commands: Commands,
+    class: Res<Class>,
+    mut players: Query<(Entity, &mut AnimationPlayer), Without<DancerPlayer>>,
+    parents: Query<&ChildOf>,
+    dancers: Query<&Dancer>,
+    report: Option<Res<Report>>,
+) {
+    let Some((graph, node, _)) = class.clip.clone() else {
+        return;
+    };
+    for (entity, mut player) in &mut players {
+        let Some(dancer) = parents
+            .iter_ancestors(entity)
+            .find_map(|e| dancers.get(e).ok())
+        else {
+            continue;
+        };
+        let active = player.play(node).repeat();
+        active.seek_to(class.dance_time(dancer.index, 0));
+        if report.is_some() {
+            // The report sets every frame's time itself.
+            active.set_speed(0.0);
+        }
+        commands.entity(entity).insert((
+            AnimationGraphHandle(graph.clone()),
+            DancerPlayer {
+                dancer: dancer.index,
+            },
+        ));
+    }
+}
+
+/// Once the first dancer is converted and posed, measures it, scales every dancer to
+/// [`DANCER_HEIGHT`] with its feet on the floor, and shows them.
+fn place_dancers(
+    mut class: ResMut<Class>,
+    mut roots: Query<(&mut Transform, &mut Visibility, &MultiresSceneModels), With<Dancer>>,
+    instances: Query<(&MultiresInstance, &GlobalTransform)>,
+    meshes: Query<&Mesh3d>,
+    mesh_assets: Res<Assets<Mesh>>,
+) {
+    if class.placed || class.dancers.is_empty() {
+        return;
+    }
+    if class.dancers.iter().any(|&d| roots.get(d).is_err()) {
+        return; // not every scene is converted yet
+    }
+    let Ok((first, _, models)) = roots.get(class.dancers[0]) else {
+        return;
+    };
+    let Some((lo, hi)) = common::scene_bounds(models, &instances) else {
+        return; // instances and boxes come a frame or two after the conversion
+    };
+    let height = hi.y - lo.y;
+    // Measured with the root at layout[0] and scale 1: in the root's space the model spans
+    // lo - at .. hi - at.
+    let at = first.translation;
+    let scale = DANCER_HEIGHT / height;
+    let offset = Vec3::new(
+        (lo.x + hi.x) * 0.5 - at.x,
+        lo.y - at.y,
+        (lo.z + hi.z) * 0.5 - at.z,
+    );
+    info!(
+        "{}: {height:.3} units tall, scaled by {scale:.4} to {DANCER_HEIGHT} m",
+        class.file
+    );
+    let dancers = class.dancers.clone();
+    for (i, &d) in dancers.iter().enumerate() {
+        let Ok((mut transform, mut visibility, models)) = roots.get_mut(d) else {
+            continue;
+        };
+        transform.scale = Vec3::splat(scale);
+        transform.translation = class.layout[i] - offset * scale;
+        *visibility = Visibility::Inherited;
+        class.fixed[i] = models
+            .fixed
+            .iter()
+            .filter_map(|&e| meshes.get(e).ok())
+            .filter_map(|m| mesh_assets.get(&m.0))
+            .map(triangles_of)
+            .sum();
+    }
+    class.placed = true;
+}
+
+fn triangles_of(mesh: &Mesh) -> usize {
+    match mesh.indices() {
+        Some(indices) => indices.len() / 3,
+        None => mesh.count_vertices() / 3,
+    }
+}
+
+/// Triangles each dancer shows now (multiresolution regions and fixed meshes).
+fn dancer_triangles(
+    class: &Class,
+    roots: &Query<&MultiresSceneModels, With<Dancer>>,
+    instances: &Query<&MultiresInstance>,
+) -> Vec<usize> {
+    class
+        .dancers
+        .iter()
+        .enumerate()
+        .map(|(i, &d)| {
+            let multires: usize = roots.get(d).map_or(0, |models| {
+                models
+                    .models()
+                    .filter_map(|m| instances.get(m).ok())
+                    .map(MultiresInstance::triangle_count)
+                    .sum()
+            });
+            multires + class.fixed[i]
+        })
+        .collect()
+}
+
+/// Sets the camera and every dancer's pose for scripted frame `frame` of `frames`.
+fn apply_frame(
+    class: &Class,
+    frame: u32,
+    frames: u32,
+    camera: &mut Query<&mut Transform, With<MainCamera>>,
+    players: &mut Query<(&DancerPlayer, &mut AnimationPlayer)>,
+) {
+    let u = frame.saturating_sub(1) as f32 / (frames - 1).max(1) as f32;
+    if let Ok(mut transform) = camera.single_mut() {
+        *transform = class.camera_at(u);
+    }
+    let Some((_, node, _)) = class.clip else {
+        return;
+    };
+    for (dancer, mut player) in players.iter_mut() {
+        if let Some(active) = player.animation_mut(node) {
+            active.seek_to(class.dance_time(dancer.dancer, frame));
+        }
+    }
+}
+
+/// Switches LOD on (budget P) or off (every region at full detail, through the same
+/// pipeline: the plugin's [`FullDetail`]).
+fn set_lod(class: &mut Class, full_detail: &mut FullDetail, on: bool) {
+    class.lod = on;
+    full_detail.0 = !on;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Interactive mode.
+
+#[derive(Resource, Default)]
+struct Interactive {
+    free_camera: bool,
+    paused: bool,
+    script_time: f32,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn keys(
+    input: Res<ButtonInput<KeyCode>>,
+    mut class: ResMut<Class>,
+    mut budget: ResMut<PolygonBudget>,
+    mut full_detail: ResMut<FullDetail>,
+    mut overlay: ResMut<AslodOverlay>,
+    mut state: ResMut<Interactive>,
+    mut players: Query<&mut AnimationPlayer, With<DancerPlayer>>,
+    mut cameras: Query<&mut FlyCamera>,
+) {
+    if input.just_pressed(KeyCode::KeyO) {
+        overlay.0 = !overlay.0;
+    }
+    if input.just_pressed(KeyCode::KeyC) {
+        state.free_camera = !state.free_camera;
+        for mut fly in &mut cameras {
+            fly.enabled = state.free_camera;
+        }
+    }
+    if input.just_pressed(KeyCode::KeyL) {
+        let on = !class.lod;
+        set_lod(&mut class, &mut full_detail, on);
+    }
+    if input.just_pressed(KeyCode::ArrowUp) || input.just_pressed(KeyCode::ArrowDown) {
+        let factor = if input.just_pressed(KeyCode::ArrowUp) {
+            1.25
+        } else {
+            0.8
+        };
+        class.budget = ((class.budget as f32 * factor).round() as u32).clamp(100, 10_000_000);
+        budget.total = class.budget;
+    }
+    if input.just_pressed(KeyCode::ArrowRight) {
+        budget.alpha = (budget.alpha + 0.5).min(10.0);
+    }
+    if input.just_pressed(KeyCode::ArrowLeft) {
+        budget.alpha = (budget.alpha - 0.5).max(0.5);
+    }
+    if input.just_pressed(KeyCode::Space) {
+        state.paused = !state.paused;
+        for mut player in &mut players {
+            if state.paused {
+                player.pause_all();
+            } else {
+                player.resume_all();
+            }
+        }
+    }
+}
+
+fn script_camera(
+    time: Res<Time>,
+    class: Res<Class>,
+    mut state: ResMut<Interactive>,
+    mut camera: Query<&mut Transform, With<MainCamera>>,
+) {
+    if state.free_camera || !class.placed {
+        return;
+    }
+    state.script_time = (state.script_time + time.delta_secs()) % SCRIPT_SECONDS;
+    // There and back, so the path loops without a jump.
+    let u = state.script_time / SCRIPT_SECONDS * 2.0;
+    let u = if u > 1.0 { 2.0 - u } else { u };
+    if let Ok(mut transform) = camera.single_mut() {
+        *transform = class.camera_at(u);
+    }
+}
+
+fn update_label(
+    time: Res<Time>,
+    class: Res<Class>,
+    budget: Res<PolygonBudget>,
+    stats: Res<AslodStats>,
+    state: Res<Interactive>,
+    roots: Query<&MultiresSceneModels, With<Dancer>>,
+    instances: Query<&MultiresInstance>,
+    mut label: Query<&mut Text, With<Label>>,
+) {
+    let counts = dancer_triangles(&class, &roots, &instances);
+    let shown: Vec<String> = counts.iter().take(8).map(|c| c.to_string()).collect();
+    let text = format!(
+        "{} triangles in use / P = {}  (alpha {:.1}, LOD {})\nper dancer: {}{}\nframe {:.1} ms, deform {:.2} ms, {} regions changed\n\
+         Up/Down: P  Left/Right: alpha  L: LOD  O: overlay  C: {} camera  Space: pause",
+        stats.triangles + u64::from(stats.fixed_cost),
+        class.budget,
+        budget.alpha,
+        if class.lod { "on" } else { "off" },
+        shown.join(" / "),
+        if counts.len() > 8 { " ..." } else { "" },
+        time.delta_secs() * 1000.0,
+        stats.deform_ms,
+        stats.regions_changed,
+        if state.free_camera {
+            "scripted"
+        } else {
+            "free"
+        },
+    );
+    for mut label in &mut label {
+        if label.0 != text {
+            label.0.clone_from(&text);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The headless report.
+
+#[derive(Resource)]
+struct ShotTarget(Handle<Image>);
+
+/// Where the headless run is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Stage {
+    /// Waiting for the model, its clip and the dancers' placement.
+    Loading,
+    /// Rendering frame 1 until a screenshot shows something (pipelines compile slowly on a
+    /// software rasteriser).
+    Warmup,
+    /// Running the scripted frames; `frame` 0 is the settling before frame 1.
+    Run { lod: bool, frame: u32, settle: u32 },
+    /// Taking screenshot `index` of [`Report::shots`].
+    Shots { index: usize },
+    /// Writing the report.
+    Done,
+    /// The report is written; the app is on its way out.
+    Exiting,
+}
+
+/// One measured frame.
+#[derive(Clone, Debug, Default)]
+struct Row {
+    ms: f64,
+    dancers: Vec<usize>,
+    total: u64,
+    /// The plugin's own CPU time: Allocate, Deform, SelectLod + Upload.
+    allocate_ms: f64,
+    deform_ms: f64,
+    update_ms: f64,
+}
+
+#[derive(Resource)]
+struct Report {
+    dir: PathBuf,
+    frames: u32,
+    /// Offscreen image size.
+    size: (u32, u32),
+    stage: Stage,
+    last: Option<Instant>,
+    lod: Vec<Row>,
+    no_lod: Vec<Row>,
+    /// (frame, with overlay)
+    shots: Vec<(u32, bool)>,
+    wait: u32,
+    pending: bool,
+    attempts: u32,
+    /// A warm-up screenshot came back non-blank.
+    drawn: bool,
+    /// Screenshots taken, and the names of those saved.
+    shots_done: usize,
+    saved: Vec<String>,
+}
+
+impl Report {
+    fn new(dir: PathBuf, frames: u32, size: (u32, u32)) -> Self {
+        Self {
+            dir,
+            frames,
+            size,
+            stage: Stage::Loading,
+            last: None,
+            lod: Vec::new(),
+            no_lod: Vec::new(),
+            shots: vec![(1, false), (frames.div_ceil(2), true), (frames, false)],
+            wait: 0,
+            pending: false,
+            attempts: 0,
+            drawn: false,
+            shots_done: 0,
+            saved: Vec::new(),
+        }
+    }
+}
+
+/// Runs in `Last`: records the frame just finished and sets up the next one.
+#[allow(clippy::too_many_arguments)]
+fn drive_report(
+    mut commands: Commands,
+    mut report: ResMut<Report>,
+    mut class: ResMut<Class>,
+    mut full_detail: ResMut<FullDetail>,
+    mut overlay: ResMut<AslodOverlay>,
+    stats: Res<AslodStats>,
+    target: Option<Res<ShotTarget>>,
+    roots: Query<&MultiresSceneModels, With<Dancer>>,
+    instances: Query<&MultiresInstance>,
+    mut camera: Query<&mut Transform, With<MainCamera>>,
+    mut players: Query<(&DancerPlayer, &mut AnimationPlayer)>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    let now = Instant::now();
+    let period = report.last.map(|t| (now - t).as_secs_f64() * 1000.0);
+    report.last = Some(now);
+    let frames = report.frames;
+    match report.stage {
+        Stage::Loading => {
+            let bound = players.iter().count() >= class.dancers.len();
+            if class.ready() && bound {
+                info!("class ready: {} dancers", class.dancers.len());
+                report.stage = Stage::Warmup;
+                report.wait = 3;
+                apply_frame(&class, 1, frames, &mut camera, &mut players);
+            }
+        }
+        Stage::Warmup => {
+            if report.drawn {
+                report.stage = Stage::Run {
+                    lod: true,
+                    frame: 0,
+                    settle: SETTLE_FRAMES,
+                };
+                set_lod(&mut class, &mut full_detail, true);
+            } else {
+                request_shot(&mut commands, &mut report, target.as_deref());
+            }
+        }
+        Stage::Run { lod, frame, settle } => {
+            if frame > 0 {
+                let row = Row {
+                    ms: period.unwrap_or(0.0),
+                    dancers: dancer_triangles(&class, &roots, &instances),
+                    total: stats.triangles + u64::from(stats.fixed_cost),
+                    allocate_ms: stats.allocation_ms,
+                    deform_ms: stats.deform_ms,
+                    update_ms: stats.update_ms,
+                };
+                if lod {
+                    report.lod.push(row);
+                } else {
+                    report.no_lod.push(row);
+                }
+            }
+            let next = if settle > 0 {
+                Stage::Run {
+                    lod,
+                    frame: 0,
+                    settle: settle - 1,
+                }
+            } else if frame < frames {
+                Stage::Run {
+                    lod,
+                    frame: frame + 1,
+                    settle: 0,
+                }
+            } else if lod {
+                info!("with LOD done; now the same frames at full detail");
+                set_lod(&mut class, &mut full_detail, false);
+                Stage::Run {
+                    lod: false,
+                    frame: 0,
+                    settle: SETTLE_FRAMES,
+                }
+            } else {
+                set_lod(&mut class, &mut full_detail, true);
+                report.wait = 4;
+                Stage::Shots { index: 0 }
+            };
+            report.stage = next;
+            if let Stage::Run { frame, .. } = next {
+                apply_frame(&class, frame.max(1), frames, &mut camera, &mut players);
+            }
+        }
+        Stage::Shots { index } => {
+            let Some(&(frame, with_overlay)) = report.shots.get(index) else {
+                report.stage = Stage::Done;
+                return;
+            };
+            apply_frame(&class, frame, frames, &mut camera, &mut players);
+            overlay.0 = with_overlay;
+            if report.shots_done > index {
+                overlay.0 = false;
+                report.wait = 4;
+                report.stage = Stage::Shots { index: index + 1 };
+            } else {
+                request_shot(&mut commands, &mut report, target.as_deref());
+            }
+        }
+        Stage::Done => {
+            match write_report(&report, &class) {
+                Ok(()) => {
+                    exit.write(AppExit::Success);
+                }
+                Err(e) => {
+                    error!("cannot write the report: {e}");
+                    exit.write(AppExit::error());
+                }
+            }
+            report.stage = Stage::Exiting;
+        }
+        Stage::Exiting => {}
+    }
+}
+
+/// Asks for a screenshot after `wait` frames, unless one is in flight.
+fn request_shot(commands: &mut Commands, report: &mut Report, target: Option<&ShotTarget>) {
+    if report.pending {
+        return;
+    }
+    if report.wait > 0 {
+        report.wait -= 1;
+        return;
+    }
+    let Some(target) = target else {
+        return;
+    };
+    report.pending = true;
+    commands
+        .spawn(Screenshot::image(target.0.clone()))
+        .observe(on_captured);
+}
+
+/// Saves a captured frame (or, while warming up, notes that something is drawn).
+fn on_captured(captured: On<ScreenshotCaptured>, mut report: ResMut<Report>) {
+    report.pending = false;
+    let varied = common::is_drawn(&captured);
+    match report.stage {
+        Stage::Warmup => {
+            if varied || report.attempts >= 60 {
+                if !varied {
+                    warn!(
+                        "the frame still looks blank after {} tries",
+                        report.attempts
+                    );
+                }
+                report.drawn = true;
+                report.attempts = 0;
+            } else {
+                report.attempts += 1;
+                report.wait = 5;
+            }
+        }
+        Stage::Shots { index } => {
+            let Some(&(frame, with_overlay)) = report.shots.get(index) else {
+                return;
+            };
+            let name = format!(
+                "frame_{frame:03}{}.png",
+                if with_overlay { "_overlay" } else { "" }
+            );
+            if !varied {
+                warn!("{name} looks blank");
+            }
+            if common::save_capture(&captured, &report.dir.join(&name)) {
+                report.saved.push(name);
+            }
+            report.shots_done += 1;
+        }
+        _ => {}
+    }
+}
+
+/// Median, 95th percentile (nearest rank) and coefficient of variation.
+fn frame_stats(rows: &[Row]) -> serde_json::Value {
+    let mut ms: Vec<f64> = rows.iter().map(|r| r.ms).collect();
+    if ms.is_empty() {
+        return serde_json::Value::Null;
+    }
+    ms.sort_by(f64::total_cmp);
+    let rank = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
+    let median = if ms.len() % 2 == 1 {
+        ms[ms.len() / 2]
+    } else {
+        (ms[ms.len() / 2 - 1] + ms[ms.len() / 2]) * 0.5
+    };
+    let mean = ms.iter().sum::<f64>() / ms.len() as f64;
+    let variance = ms.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / ms.len() as f64;
+    serde_json::json!({
+        "median_ms": median,
+        "p95_ms": rank(0.95),
+        "mean_ms": mean,
+        "cv": if mean > 0.0 { variance.sqrt() / mean } else { 0.0 },
+    })
+}
+
+fn write_report(report: &Report, class: &Class) -> Result<(), String> {
+    let n = class.dancers.len();
+    let frames = report.lod.len().min(report.no_lod.len());
+    if frames == 0 {
+        return Err("no frames were recorded".into());
+    }
+    // frames.csv
+    let mut csv = String::from("frame,frame_ms");
+    for i in 0..n {
+        csv += &format!(",mannequin_{}", i + 1);
+    }
+    csv += ",total,no_lod_frame_ms,no_lod_total,allocate_ms,deform_ms,update_ms,no_lod_deform_ms,no_lod_update_ms\n";
+    for f in 0..frames {
+        let (a, b) = (&report.lod[f], &report.no_lod[f]);
+        csv += &format!("{},{:.3}", f + 1, a.ms);
+        for c in &a.dancers {
+            csv += &format!(",{c}");
+        }
+        csv += &format!(
+            ",{},{:.3},{},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
+            a.total,
+            b.ms,
+            b.total,
+            a.allocate_ms,
+            a.deform_ms,
+            a.update_ms,
+            b.deform_ms,
+            b.update_ms
+        );
+    }
+    let path = report.dir.join("frames.csv");
+    std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
+
+    // summary.json
+    let lod = &report.lod[..frames];
+    let no_lod = &report.no_lod[..frames];
+    let largest = lod.iter().map(|r| r.total).max().unwrap_or(0);
+    let smallest = lod.iter().map(|r| r.total).min().unwrap_or(0);
+    let full_above = (0..frames).filter(|&f| no_lod[f].total > u64::from(class.budget));
+    let filled = full_above
+        .clone()
+        .all(|f| lod[f].total * 10 >= u64::from(class.budget) * 9);
+    let smallest_when_full_above = full_above.map(|f| lod[f].total).min();
+    let dancers: Vec<serde_json::Value> = (0..n)
+        .map(|i| {
+            let counts: Vec<usize> = lod.iter().map(|r| r.dancers[i]).collect();
+            let shares: Vec<f64> = lod
+                .iter()
+                .map(|r| {
+                    let sum: usize = r.dancers.iter().sum();
+                    if sum == 0 {
+                        0.0
+                    } else {
+                        r.dancers[i] as f64 / sum as f64
+                    }
+                })
+                .collect();
+            let (lo, hi) = (
+                counts.iter().copied().min().unwrap_or(0),
+                counts.iter().copied().max().unwrap_or(0),
+            );
+            serde_json::json!({
+                "min_triangles": lo,
+                "max_triangles": hi,
+                "ratio": if lo > 0 { hi as f64 / lo as f64 } else { f64::INFINITY },
+                "share_min": shares.iter().copied().fold(f64::INFINITY, f64::min),
+                "share_max": shares.iter().copied().fold(0.0, f64::max),
+            })
+        })
+        .collect();
+    let with = frame_stats(lod);
+    let without = frame_stats(no_lod);
+    let get = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+    let cv_bound = (get(&without, "cv") / 3.0).max(0.05);
+    let targets = serde_json::json!({
+        "total_within_budget": largest <= u64::from(class.budget),
+        "total_at_least_90_percent_when_full_detail_exceeds_budget": filled,
+        "each_mannequin_varies_3x": dancers.iter().all(|d| d["ratio"].as_f64().unwrap_or(f64::INFINITY) >= 3.0),
+        "cv_at_most_max_of_third_of_no_lod_or_5_percent": get(&with, "cv") <= cv_bound,
+        "median_at_most_half_of_no_lod": get(&with, "median_ms") <= 0.5 * get(&without, "median_ms"),
+    });
+    let summary = serde_json::json!({
+        "model": class.file,
+        "clip": class.clip_name,
+        "dancers": n,
+        "budget": class.budget,
+        "frames": frames,
+        "screen": [report.size.0, report.size.1],
+        "build": if cfg!(debug_assertions) { "debug" } else { "release" },
+        "with_lod": with,
+        "without_lod": without,
+        "largest_total": largest,
+        "smallest_total": smallest,
+        "smallest_total_when_full_detail_exceeds_budget": smallest_when_full_above,
+        "full_detail_total": no_lod.iter().map(|r| r.total).max(),
+        "mannequins": dancers,
+        "targets": targets,
+        "screenshots": report.saved,
+    });
+    let path = report.dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    info!("summary: {summary}");
+
+    charts::frame_time(
+        &report.dir.join("frame_time.png"),
+        lod,
+        no_lod,
+        class.budget,
+    )?;
+    charts::allocation(&report.dir.join("allocation.png"), lod, class.budget)?;
+    Ok(())
+}
+
+/// The report's charts, drawn with `plotters` into an RGB buffer and saved as PNG.
+mod charts {
+    use super::{Extent3d, Image, RenderAssetUsages, Row, TextureDimension, TextureFormat};
+    use plotters::prelude::*;
+    use std::path::Path;
+    use std::sync::Once;
+
+    const SIZE: (u32, u32) = (960, 540);
+
+    /// Plotters draws text with a font it is given: Bevy's built-in one.
+    fn register_font() {
+        static ONCE: Once = Once::new();
+        ONCE.call_once(|| {
+            if plotters::style::register_font(
+                "sans-serif",
+                FontStyle::Normal,
+                bevy::text::DEFAULT_FONT_DATA,
+            )
+            .is_err()
+            {
+                bevy::log::warn!("the chart font did not load; charts have no text");
+            }
+        });
+    }
+
+    fn save(path: &Path, rgb: &[u8]) -> Result<(), String> {
+        let rgba: Vec<u8> = rgb
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 255])
+            .collect();
+        let image = Image::new(
+            Extent3d {
+                width: SIZE.0,
+                height: SIZE.1,
+                depth_or_array_layers: 1,
+            },
+            TextureDimension::D2,
+            rgba,
+            TextureFormat::Rgba8UnormSrgb,
+            RenderAssetUsages::default(),
+        );
+        image
+            .try_into_dynamic()
+            .map_err(|e| e.to_string())?
+            .to_rgb8()
+            .save(path)
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    fn draw(
+        path: &Path,
+        body: impl FnOnce(&DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
+    ) -> Result<(), String> {
+        register_font();
+        let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
+            root.fill(&WHITE).map_err(|e| e.to_string())?;
+            body(&root)?;
+            root.present().map_err(|e| e.to_string())?;
+        }
+        save(path, &rgb)
+    }
+
+    /// Figure 11: frame time per frame, with LOD and at full detail.
+    pub fn frame_time(path: &Path, lod: &[Row], no_lod: &[Row], budget: u32) -> Result<(), String> {
+        let frames = lod.len() as u32;
+        let top = lod
+            .iter()
+            .chain(no_lod)
+            .map(|r| r.ms)
+            .fold(1.0f64, f64::max)
+            * 1.1;
+        let full = no_lod.iter().map(|r| r.total).max().unwrap_or(0);
+        draw(path, |root| {
+            let mut chart = ChartBuilder::on(root)
+                .caption("Frame time per frame", ("sans-serif", 26))
+                .margin(16)
+                .x_label_area_size(48)
+                .y_label_area_size(64)
+                .build_cartesian_2d(1u32..frames.max(2), 0f64..top)
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc("frame")
+                .y_desc("frame time (ms)")
+                .axis_desc_style(("sans-serif", 18))
+                .label_style(("sans-serif", 15))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            let series = [
+                (lod, RED, format!("with LOD (P = {budget} triangles)")),
+                (no_lod, BLUE, format!("no LOD ({full} triangles)")),
+            ];
+            for (rows, color, label) in series {
+                chart
+                    .draw_series(LineSeries::new(
+                        rows.iter().enumerate().map(|(f, r)| (f as u32 + 1, r.ms)),
+                        color.stroke_width(2),
+                    ))
+                    .map_err(|e| e.to_string())?
+                    .label(label)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .label_font(("sans-serif", 16))
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| e.to_string())
+        })
+    }
+
+    /// Each mannequin's triangles per frame (the first eight in a crowd), and the total.
+    pub fn allocation(path: &Path, lod: &[Row], budget: u32) -> Result<(), String> {
+        let frames = lod.len() as u32;
+        let top = lod
+            .iter()
+            .map(|r| r.total)
+            .max()
+            .unwrap_or(1)
+            .max(u64::from(budget)) as f64
+            * 1.08;
+        draw(path, |root| {
+            let mut chart = ChartBuilder::on(root)
+                .caption("Triangles per mannequin", ("sans-serif", 26))
+                .margin(16)
+                .x_label_area_size(48)
+                .y_label_area_size(72)
+                .build_cartesian_2d(1u32..frames.max(2), 0f64..top)
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc("frame")
+                .y_desc("triangles")
+                .axis_desc_style(("sans-serif", 18))
+                .label_style(("sans-serif", 15))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            let dancers = lod.first().map_or(0, |r| r.dancers.len());
+            for i in 0..dancers.min(8) {
+                let color = Palette99::pick(i).to_rgba();
+                chart
+                    .draw_series(LineSeries::new(
+                        lod.iter()
+                            .enumerate()
+                            .map(|(f, r)| (f as u32 + 1, r.dancers[i] as f64)),
+                        color.stroke_width(2),
+                    ))
+                    .map_err(|e| e.to_string())?
+                    .label(format!("mannequin {}", i + 1))
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
+                    });
+            }
+            chart
+                .draw_series(LineSeries::new(
+                    lod.iter()
+                        .enumerate()
+                        .map(|(f, r)| (f as u32 + 1, r.total as f64)),
+                    BLACK.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?
+                .label("total (with the floor)")
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], BLACK.stroke_width(2))
+                });
+            chart
+                .draw_series(LineSeries::new(
+                    [(1, f64::from(budget)), (frames.max(2), f64::from(budget))],
+                    BLACK.mix(0.5).stroke_width(1),
+                ))
+                .map_err(|e| e.to_string())?
+                .label(format!("budget P = {budget}"))
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], BLACK.mix(0.5)));
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .label_font(("sans-serif", 16))
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| e.to_string())
+        })
+    }
+}

@@ -1,0 +1,197 @@
+//! Pieces the examples share: the app's plugins with or without a window, a fly camera,
+//! loading a glTF character's clip, and offscreen screenshots.
+#![allow(dead_code)]
+
+use bevy::app::ScheduleRunnerPlugin;
+use bevy::gltf::Gltf;
+use bevy::input::mouse::AccumulatedMouseMotion;
+use bevy::prelude::*;
+use bevy::render::view::screenshot::ScreenshotCaptured;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy_aslod::budget::Obb;
+use bevy_aslod::plugin::{MultiresInstance, MultiresSceneModels};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// `DefaultPlugins` with assets read from `asset_root`: in a window titled `title`, or, when
+/// `headless`, with no window at all (the examples render into an `Image`), run as fast as
+/// the frames go.
+pub fn add_default_plugins(app: &mut App, headless: bool, title: &str, asset_root: Option<&Path>) {
+    let mut assets = AssetPlugin::default();
+    if let Some(root) = asset_root {
+        assets.file_path = root.to_string_lossy().into_owned();
+    }
+    if headless {
+        app.add_plugins((
+            DefaultPlugins
+                .set(assets)
+                .set(WindowPlugin {
+                    primary_window: None,
+                    exit_condition: ExitCondition::DontExit,
+                    ..default()
+                })
+                .disable::<WinitPlugin>(),
+            ScheduleRunnerPlugin::run_loop(Duration::ZERO),
+        ));
+    } else {
+        app.add_plugins(DefaultPlugins.set(assets).set(WindowPlugin {
+            primary_window: Some(Window {
+                title: title.into(),
+                ..default()
+            }),
+            ..default()
+        }));
+    }
+}
+
+/// The asset folder (the model's own) and the file name to load from it.
+pub fn split_model_path(model: &Path) -> Result<(PathBuf, String), String> {
+    let model = model
+        .canonicalize()
+        .map_err(|e| format!("cannot open the model {}: {e}", model.display()))?;
+    let file = model
+        .file_name()
+        .and_then(|f| f.to_str())
+        .ok_or_else(|| format!("{} has no usable file name", model.display()))?
+        .to_owned();
+    let root = model
+        .parent()
+        .ok_or_else(|| format!("{} has no folder", model.display()))?
+        .to_path_buf();
+    Ok((root, file))
+}
+
+/// The clip called `name` (or the first one) of a loaded glTF, or an error that lists the
+/// clips there are.
+pub fn pick_clip(
+    gltf: &Gltf,
+    file: &str,
+    name: Option<&str>,
+) -> Result<Handle<AnimationClip>, String> {
+    match name {
+        Some(name) => gltf.named_animations.get(name).cloned().ok_or_else(|| {
+            let mut names: Vec<&str> = gltf.named_animations.keys().map(|k| k.as_ref()).collect();
+            names.sort_unstable();
+            format!("{file} has no clip named {name:?}; it has {names:?}")
+        }),
+        None => gltf
+            .animations
+            .first()
+            .cloned()
+            .ok_or_else(|| format!("{file} has no animation")),
+    }
+}
+
+/// The world-space bounds of a converted scene's multiresolution models, or `None` until
+/// every model has its instance and boxes.
+pub fn scene_bounds(
+    models: &MultiresSceneModels,
+    instances: &Query<(&MultiresInstance, &GlobalTransform)>,
+) -> Option<(Vec3, Vec3)> {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for model in models.models() {
+        let (instance, transform) = instances.get(model).ok()?;
+        let boxes: Vec<Obb> = match instance.skinned_world_boxes() {
+            Some(boxes) => boxes.to_vec(),
+            None => {
+                let affine = transform.affine();
+                instance
+                    .regions()
+                    .regions()
+                    .iter()
+                    .map(|r| {
+                        let (a, b) = r.bounds();
+                        Obb::from_aabb(a, b).transformed(&affine)
+                    })
+                    .collect()
+            }
+        };
+        for corner in boxes.iter().flat_map(|b| b.corners()) {
+            lo = lo.min(corner);
+            hi = hi.max(corner);
+        }
+    }
+    let size = hi - lo;
+    (size.is_finite() && size.y > 0.0).then_some((lo, hi))
+}
+
+/// A camera the user flies: WASD, Q/E down/up, Shift faster, drag with the left mouse
+/// button to look. `speed` is in world units per second; it does nothing while `enabled` is
+/// false.
+#[derive(Component, Debug)]
+pub struct FlyCamera {
+    pub enabled: bool,
+    pub speed: f32,
+}
+
+pub fn fly_camera(
+    time: Res<Time>,
+    input: Res<ButtonInput<KeyCode>>,
+    mouse: Res<ButtonInput<MouseButton>>,
+    motion: Res<AccumulatedMouseMotion>,
+    mut cameras: Query<(&mut Transform, &FlyCamera)>,
+) {
+    for (mut transform, fly) in &mut cameras {
+        if !fly.enabled {
+            continue;
+        }
+        if mouse.pressed(MouseButton::Left) && motion.delta != Vec2::ZERO {
+            let (yaw, pitch, _) = transform.rotation.to_euler(EulerRot::YXZ);
+            let yaw = yaw - motion.delta.x * 0.003;
+            let pitch = (pitch - motion.delta.y * 0.003).clamp(-1.54, 1.54);
+            transform.rotation = Quat::from_euler(EulerRot::YXZ, yaw, pitch, 0.0);
+        }
+        let mut dir = Vec3::ZERO;
+        for (key, d) in [
+            (KeyCode::KeyW, *transform.forward()),
+            (KeyCode::KeyS, *transform.back()),
+            (KeyCode::KeyA, *transform.left()),
+            (KeyCode::KeyD, *transform.right()),
+            (KeyCode::KeyE, Vec3::Y),
+            (KeyCode::KeyQ, Vec3::NEG_Y),
+        ] {
+            if input.pressed(key) {
+                dir += d;
+            }
+        }
+        let speed = if input.pressed(KeyCode::ShiftLeft) {
+            fly.speed * 4.0
+        } else {
+            fly.speed
+        };
+        transform.translation += dir.normalize_or_zero() * speed * time.delta_secs();
+    }
+}
+
+/// Whether a captured frame shows something: more than a tenth of its pixels differ from
+/// the first one (pipelines compile slowly on a software rasteriser, and until then the
+/// frame is the clear colour).
+pub fn is_drawn(captured: &ScreenshotCaptured) -> bool {
+    captured.image.data.as_ref().is_some_and(|data| {
+        let first = data.get(..4).unwrap_or(&[]);
+        let differing = data.chunks_exact(4).filter(|p| *p != first).count();
+        differing * 10 > data.len() / 4
+    })
+}
+
+/// Saves a captured frame as PNG, logging the outcome.
+pub fn save_capture(captured: &ScreenshotCaptured, path: &Path) -> bool {
+    match captured.image.clone().try_into_dynamic() {
+        Ok(img) => match img.to_rgb8().save(path) {
+            Ok(()) => {
+                info!("saved {}", path.display());
+                true
+            }
+            Err(e) => {
+                error!("cannot save {}: {e}", path.display());
+                false
+            }
+        },
+        Err(e) => {
+            error!("cannot convert the screenshot: {e}");
+            false
+        }
+    }
+}
