@@ -6,7 +6,7 @@ APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libude
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
-.PHONY: demo test deps lint bench compare
+.PHONY: demo silvretta test deps lint bench bench-bevy compare
 
 deps:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -17,14 +17,25 @@ deps:
 		DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 
-# The Silvretta terrain (ASLOD Figure 8): in a window when there is a display, otherwise
-# rendered offscreen through lavapipe into out/silvretta (PNGs and per-region counts).
+# The aerobic class (ASLOD Figures 9-11): three dancing mannequins under 5,000 triangles, in a
+# window when there is a display, otherwise rendered offscreen through lavapipe into
+# out/aerobic_class (frames.csv, frame_time.png, allocation.png, screenshots, summary.json).
 demo: deps
+	@if [ -n "$$DISPLAY$$WAYLAND_DISPLAY" ]; then \
+		$(CARGO) run --example aerobic_class; \
+	else \
+		echo "no display: rendering headless into out/aerobic_class"; \
+		$(CARGO) run --example aerobic_class -- --headless --frames 120 --report out/aerobic_class && \
+		cat out/aerobic_class/summary.json; \
+	fi
+
+# The Silvretta terrain (ASLOD Figure 8), the same way, into out/silvretta.
+silvretta: deps
 	@if [ -n "$$DISPLAY$$WAYLAND_DISPLAY" ]; then \
 		$(CARGO) run --example silvretta; \
 	else \
 		echo "no display: rendering headless into out/silvretta"; \
-		xvfb-run -a $(CARGO) run --example silvretta -- --headless --frames 10 --screenshot out/silvretta && \
+		$(CARGO) run --example silvretta -- --headless --frames 10 --screenshot out/silvretta && \
 		cat out/silvretta/counts.json; \
 	fi
 
@@ -39,7 +50,11 @@ lint:
 	$(CARGO) clippy --no-default-features --lib --tests -- -D warnings
 
 bench:
-	$(CARGO) bench --no-default-features --bench multires --bench budget
+	$(CARGO) bench --no-default-features --bench multires --bench budget --bench skin
+
+# The Bevy benches (release builds of Bevy take long on small machines).
+bench-bevy: deps
+	$(CARGO) bench --bench plugin --bench skinned_crowd
 
 compare:
 	@for m in stanford-bunny cow fandisk spot; do \

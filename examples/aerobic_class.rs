@@ -94,6 +94,7 @@ fn main() {
             std::process::exit(1);
         }
         app.insert_resource(Report::new(dir, args.frames, args.size))
+            .add_systems(Update, update_label.after(place_dancers))
             .add_systems(Last, drive_report);
     } else {
         app.insert_resource(Interactive::default()).add_systems(
@@ -371,6 +372,8 @@ fn setup(
         // Lavapipe shades on the CPU: without multisampling the frame is cheaper by more
         // than the triangles it draws.
         Msaa::Off,
+        // The label and the overlay's counts are drawn into this camera's image too.
+        IsDefaultUiCamera,
         class.camera_at(0.0),
         MainCamera,
         FlyCamera {
@@ -675,13 +678,29 @@ fn update_label(
     class: Res<Class>,
     budget: Res<PolygonBudget>,
     stats: Res<AslodStats>,
-    state: Res<Interactive>,
+    state: Option<Res<Interactive>>,
     roots: Query<&MultiresSceneModels, With<Dancer>>,
     instances: Query<&MultiresInstance>,
     mut label: Query<&mut Text, With<Label>>,
 ) {
     let counts = dancer_triangles(&class, &roots, &instances);
     let shown: Vec<String> = counts.iter().take(8).map(|c| c.to_string()).collect();
+    let Some(state) = state else {
+        // The report's screenshots: the counts only (frame times would differ run to run).
+        let text = format!(
+            "{} triangles / P = {}\nper mannequin: {}{}",
+            stats.triangles + u64::from(stats.fixed_cost),
+            class.budget,
+            shown.join(" / "),
+            if counts.len() > 8 { " ..." } else { "" },
+        );
+        for mut label in &mut label {
+            if label.0 != text {
+                label.0.clone_from(&text);
+            }
+        }
+        return;
+    };
     let text = format!(
         "{} triangles in use / P = {}  (alpha {:.1}, LOD {})\nper dancer: {}{}\nframe {:.1} ms, deform {:.2} ms, {} regions changed\n\
          Up/Down: P  Left/Right: alpha  L: LOD  O: overlay  C: {} camera  Space: pause",
@@ -1186,6 +1205,7 @@ mod charts {
                 .configure_mesh()
                 .x_desc("frame")
                 .y_desc("frame time (ms)")
+                .y_label_formatter(&|v| format!("{v:.0}"))
                 .axis_desc_style(("sans-serif", 18))
                 .label_style(("sans-serif", 15))
                 .draw()
@@ -1239,6 +1259,7 @@ mod charts {
                 .configure_mesh()
                 .x_desc("frame")
                 .y_desc("triangles")
+                .y_label_formatter(&|v| format!("{v:.0}"))
                 .axis_desc_style(("sans-serif", 18))
                 .label_style(("sans-serif", 15))
                 .draw()

@@ -281,7 +281,13 @@ fn setup(
         },
         Transform::from_xyz(-1.0, 0.9, 0.4).looking_at(Vec3::ZERO, Vec3::Y),
     ));
-    let mut camera = commands.spawn((Camera3d::default(), View::Corner.transform(), MainCamera));
+    let mut camera = commands.spawn((
+        Camera3d::default(),
+        View::Corner.transform(),
+        MainCamera,
+        // The label and the overlay's counts are drawn into this camera's image too.
+        IsDefaultUiCamera,
+    ));
     if let Some(shots) = shots {
         let image = Image::new_target_texture(
             SHOT_SIZE.0,

@@ -15,6 +15,7 @@
 mod common;
 
 use bevy::camera::RenderTarget;
+use bevy::camera::primitives::Aabb;
 use bevy::gltf::Gltf;
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
@@ -24,6 +25,7 @@ use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, MultiresInstance, MultiresMesh, MultiresModel,
     MultiresScene, MultiresSceneModels, PolygonBudget,
 };
+use bevy_aslod::budget::Obb;
 use bevy_aslod::skin::SkinRegionKind;
 use common::{FlyCamera, fly_camera};
 use std::path::{Path, PathBuf};
@@ -208,6 +210,8 @@ fn setup(
     let mut camera = commands.spawn((
         Camera3d::default(),
         Transform::from_xyz(0.0, 2.0, 8.0).looking_at(Vec3::Y, Vec3::Y),
+        // The label and the overlay's counts are drawn into this camera's image too.
+        IsDefaultUiCamera,
         MainCamera,
         FlyCamera {
             enabled: false,
@@ -277,6 +281,7 @@ fn play_clip(
         .entity(entity)
         .insert(AnimationGraphHandle(graph.clone()));
     info!("playing {:?}", name.as_deref().unwrap_or("the first clip"));
+    character.clip_name = name;
     character.clip = Some((graph, node));
 }
 
@@ -285,6 +290,7 @@ fn frame_camera(
     mut character: ResMut<Character>,
     roots: Query<&MultiresSceneModels>,
     instances: Query<(&MultiresInstance, &GlobalTransform)>,
+    fixed: Query<(&Aabb, &GlobalTransform)>,
     mut camera: Query<&mut Transform, With<MainCamera>>,
 ) {
     if character.framed.is_some() {
@@ -293,9 +299,18 @@ fn frame_camera(
     let Ok(models) = roots.get(character.root) else {
         return;
     };
-    let Some((lo, hi)) = common::scene_bounds(models, &instances) else {
+    let Some((mut lo, mut hi)) = common::scene_bounds(models, &instances) else {
         return;
     };
+    // The conventional meshes (morph targets) by their own boxes.
+    for (aabb, transform) in models.fixed.iter().filter_map(|&e| fixed.get(e).ok()) {
+        let obb = Obb::from_aabb(aabb.min().into(), aabb.max().into())
+            .transformed(&transform.affine());
+        for corner in obb.corners() {
+            lo = lo.min(corner);
+            hi = hi.max(corner);
+        }
+    }
     let (centre, height) = ((lo + hi) * 0.5, hi.y - lo.y);
     info!("character: {height:.3} units tall");
     character.framed = Some((centre, height));

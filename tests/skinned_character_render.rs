@@ -36,7 +36,7 @@ fn robot_renders_offscreen_with_rigid_and_deformable_regions() {
     }
     let text = std::fs::read_to_string(dir.join("counts.json")).expect("counts.json");
     let json: serde_json::Value = serde_json::from_str(&text).expect("valid json");
-    assert_eq!(json["clip"].as_str(), None, "no --clip given");
+    assert_eq!(json["clip"].as_str(), Some("Dance"), "the default clip");
     assert_eq!(json["skinned_models"].as_u64(), Some(4), "{json}");
     let regions = json["regions"].as_array().expect("regions");
     let count = |kind: &str| regions.iter().filter(|r| r["kind"] == kind).count();
