@@ -28,6 +28,12 @@ const WARMUP: usize = 20;
 const FRAMES: usize = 240;
 
 fn main() {
+    // `cargo bench` passes `--bench`; under `cargo test` this is a short smoke run.
+    let frames = if std::env::args().any(|a| a == "--bench") {
+        FRAMES
+    } else {
+        10
+    };
     let mut app = App::new();
     app.add_plugins((
         DefaultPlugins
@@ -136,7 +142,7 @@ fn main() {
         }
         let (mut deform, mut upload, mut total, mut blended, mut triangles) =
             (Vec::new(), Vec::new(), Vec::new(), 0usize, 0u64);
-        for frame in 0..WARMUP + FRAMES {
+        for frame in 0..WARMUP + frames {
             app.update();
             if frame < WARMUP {
                 continue;
@@ -154,12 +160,12 @@ fn main() {
             median(&mut upload),
             median(&mut total),
             p95(&mut total),
-            blended / FRAMES,
+            blended / frames,
             triangles,
         ));
     }
     println!(
-        "{COUNT} RobotExpressive instances, P = {BUDGET}, {FRAMES} frames ({} build)",
+        "{COUNT} RobotExpressive instances, P = {BUDGET}, {frames} frames ({} build)",
         if cfg!(debug_assertions) {
             "debug"
         } else {

@@ -673,6 +673,7 @@ fn script_camera(
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn update_label(
     time: Res<Time>,
     class: Res<Class>,

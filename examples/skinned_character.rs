@@ -21,11 +21,11 @@ use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::budget::Obb;
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, MultiresInstance, MultiresMesh, MultiresModel,
     MultiresScene, MultiresSceneModels, PolygonBudget,
 };
-use bevy_aslod::budget::Obb;
 use bevy_aslod::skin::SkinRegionKind;
 use common::{FlyCamera, fly_camera};
 use std::path::{Path, PathBuf};
@@ -304,8 +304,8 @@ fn frame_camera(
     };
     // The conventional meshes (morph targets) by their own boxes.
     for (aabb, transform) in models.fixed.iter().filter_map(|&e| fixed.get(e).ok()) {
-        let obb = Obb::from_aabb(aabb.min().into(), aabb.max().into())
-            .transformed(&transform.affine());
+        let obb =
+            Obb::from_aabb(aabb.min().into(), aabb.max().into()).transformed(&transform.affine());
         for corner in obb.corners() {
             lo = lo.min(corner);
             hi = hi.max(corner);
@@ -418,6 +418,7 @@ struct Shots {
     attempts: u32,
 }
 
+#[allow(clippy::too_many_arguments)]
 fn drive_shots(
     mut commands: Commands,
     mut shots: ResMut<Shots>,

@@ -165,7 +165,13 @@ pub(crate) fn convert_scenes(
                         });
                     match asset {
                         Ok(asset) => {
+                            // Said once per source mesh, not once per scene that shows it.
                             let more = asset.skin().map_or(0, |s| s.more_than_two());
+                            if more > 0 {
+                                info!(
+                                    "{more} skinned vertices have more than two influences: they join the region of their two largest and blend with all of them"
+                                );
+                            }
                             Built::Ok(multires.add(asset), more)
                         }
                         Err(e) => {
@@ -206,13 +212,6 @@ pub(crate) fn convert_scenes(
                     result.rigid.push(entity);
                 }
             }
-        }
-        if result.more_than_two > 0 {
-            info!(
-                "{} skinned vertices have more than two influences: they join the region of their \
-                 two largest and blend with all of them",
-                result.more_than_two
-            );
         }
         commands.entity(root).insert(result);
     }
