@@ -25,6 +25,7 @@ mod common;
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::RenderTarget;
+use bevy::camera::primitives::Aabb;
 use bevy::gltf::Gltf;
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
@@ -487,6 +488,7 @@ fn place_dancers(
     mut class: ResMut<Class>,
     mut roots: Query<(&mut Transform, &mut Visibility, &MultiresSceneModels), With<Dancer>>,
     instances: Query<(&MultiresInstance, &GlobalTransform)>,
+    fixed_boxes: Query<(&Aabb, &GlobalTransform)>,
     meshes: Query<&Mesh3d>,
     mesh_assets: Res<Assets<Mesh>>,
 ) {
@@ -499,7 +501,7 @@ fn place_dancers(
     let Ok((first, _, models)) = roots.get(class.dancers[0]) else {
         return;
     };
-    let Some((lo, hi)) = common::scene_bounds(models, &instances) else {
+    let Some((lo, hi)) = common::scene_bounds(models, &instances, &fixed_boxes) else {
         return; // instances and boxes come a frame or two after the conversion
     };
     let height = hi.y - lo.y;

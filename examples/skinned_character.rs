@@ -21,7 +21,6 @@ use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
-use bevy_aslod::budget::Obb;
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, MultiresInstance, MultiresMesh, MultiresModel,
     MultiresScene, MultiresSceneModels, PolygonBudget,
@@ -299,18 +298,9 @@ fn frame_camera(
     let Ok(models) = roots.get(character.root) else {
         return;
     };
-    let Some((mut lo, mut hi)) = common::scene_bounds(models, &instances) else {
+    let Some((lo, hi)) = common::scene_bounds(models, &instances, &fixed) else {
         return;
     };
-    // The conventional meshes (morph targets) by their own boxes.
-    for (aabb, transform) in models.fixed.iter().filter_map(|&e| fixed.get(e).ok()) {
-        let obb =
-            Obb::from_aabb(aabb.min().into(), aabb.max().into()).transformed(&transform.affine());
-        for corner in obb.corners() {
-            lo = lo.min(corner);
-            hi = hi.max(corner);
-        }
-    }
     let (centre, height) = ((lo + hi) * 0.5, hi.y - lo.y);
     info!("character: {height:.3} units tall");
     character.framed = Some((centre, height));

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 use bevy::app::ScheduleRunnerPlugin;
+use bevy::camera::primitives::Aabb;
 use bevy::gltf::Gltf;
 use bevy::input::mouse::AccumulatedMouseMotion;
 use bevy::prelude::*;
@@ -83,11 +84,13 @@ pub fn pick_clip(
     }
 }
 
-/// The world-space bounds of a converted scene's multiresolution models, or `None` until
-/// every model has its instance and boxes.
+/// The world-space bounds of a converted scene: its multiresolution models' region boxes and
+/// its conventional (fixed-cost) meshes' boxes; `None` until every model has its instance
+/// and boxes.
 pub fn scene_bounds(
     models: &MultiresSceneModels,
     instances: &Query<(&MultiresInstance, &GlobalTransform)>,
+    fixed: &Query<(&Aabb, &GlobalTransform)>,
 ) -> Option<(Vec3, Vec3)> {
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -109,6 +112,14 @@ pub fn scene_bounds(
             }
         };
         for corner in boxes.iter().flat_map(|b| b.corners()) {
+            lo = lo.min(corner);
+            hi = hi.max(corner);
+        }
+    }
+    for (aabb, transform) in models.fixed.iter().filter_map(|&e| fixed.get(e).ok()) {
+        let obb =
+            Obb::from_aabb(aabb.min().into(), aabb.max().into()).transformed(&transform.affine());
+        for corner in obb.corners() {
             lo = lo.min(corner);
             hi = hi.max(corner);
         }
