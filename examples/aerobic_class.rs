@@ -383,13 +383,7 @@ fn setup(
         },
     ));
     if let Some(report) = report {
-        let image = Image::new_target_texture(
-            report.size.0,
-            report.size.1,
-            TextureFormat::Rgba8Unorm,
-            Some(TextureFormat::Rgba8UnormSrgb),
-        );
-        let handle = images.add(image);
+        let handle = common::offscreen_image(&mut images, (report.size.0, report.size.1));
         camera.insert(RenderTarget::Image(handle.clone().into()));
         commands.insert_resource(ShotTarget(handle));
         info!(

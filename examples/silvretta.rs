@@ -8,21 +8,18 @@
 //! target, no window), waits N frames per shot, and writes `corner.png`, `corner_regions.png`,
 //! `top.png`, `top_regions.png` and `counts.json` to `DIR`.
 
-use bevy::app::ScheduleRunnerPlugin;
+mod common;
+
 use bevy::camera::RenderTarget;
-use bevy::input::mouse::AccumulatedMouseMotion;
 use bevy::prelude::*;
-use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
+use common::{FlyCamera, fly_camera};
 use std::path::PathBuf;
-use std::time::Duration;
 
 /// Vertices along each side of the terrain: 260² quads, 135,200 triangles.
 const SIDE: u32 = 261;
@@ -48,26 +45,12 @@ fn main() {
         }
     };
     let mut app = App::new();
-    if args.headless {
-        app.add_plugins((
-            DefaultPlugins
-                .set(WindowPlugin {
-                    primary_window: None,
-                    exit_condition: ExitCondition::DontExit,
-                    ..default()
-                })
-                .disable::<WinitPlugin>(),
-            ScheduleRunnerPlugin::run_loop(Duration::from_secs_f64(1.0 / 60.0)),
-        ));
-    } else {
-        app.add_plugins(DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(Window {
-                title: "bevy_aslod: Silvretta (ASLOD Figure 8)".into(),
-                ..default()
-            }),
-            ..default()
-        }));
-    }
+    common::add_default_plugins(
+        &mut app,
+        args.headless,
+        "bevy_aslod: Silvretta (ASLOD Figure 8)",
+        None,
+    );
     app.add_plugins(AslodPlugin::default().with_budget(BUDGET))
         .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)))
         .insert_resource(GlobalAmbientLight {
@@ -287,15 +270,13 @@ fn setup(
         MainCamera,
         // The label and the overlay's counts are drawn into this camera's image too.
         IsDefaultUiCamera,
+        FlyCamera {
+            enabled: true,
+            speed: 30.0,
+        },
     ));
     if let Some(shots) = shots {
-        let image = Image::new_target_texture(
-            SHOT_SIZE.0,
-            SHOT_SIZE.1,
-            TextureFormat::Rgba8Unorm,
-            Some(TextureFormat::Rgba8UnormSrgb),
-        );
-        let handle = images.add(image);
+        let handle = common::offscreen_image(&mut images, (SHOT_SIZE.0, SHOT_SIZE.1));
         camera.insert(RenderTarget::Image(handle.clone().into()));
         commands.insert_resource(ShotTarget(handle));
         info!(
@@ -412,43 +393,6 @@ fn keys(
     if let (Some(view), Ok(mut transform)) = (view, camera.single_mut()) {
         *transform = view.transform();
     }
-}
-
-fn fly_camera(
-    time: Res<Time>,
-    input: Res<ButtonInput<KeyCode>>,
-    mouse: Res<ButtonInput<MouseButton>>,
-    motion: Res<AccumulatedMouseMotion>,
-    mut camera: Query<&mut Transform, With<MainCamera>>,
-) {
-    let Ok(mut transform) = camera.single_mut() else {
-        return;
-    };
-    if mouse.pressed(MouseButton::Left) && motion.delta != Vec2::ZERO {
-        let (yaw, pitch, _) = transform.rotation.to_euler(EulerRot::YXZ);
-        let yaw = yaw - motion.delta.x * 0.003;
-        let pitch = (pitch - motion.delta.y * 0.003).clamp(-1.54, 1.54);
-        transform.rotation = Quat::from_euler(EulerRot::YXZ, yaw, pitch, 0.0);
-    }
-    let mut dir = Vec3::ZERO;
-    for (key, d) in [
-        (KeyCode::KeyW, *transform.forward()),
-        (KeyCode::KeyS, *transform.back()),
-        (KeyCode::KeyA, *transform.left()),
-        (KeyCode::KeyD, *transform.right()),
-        (KeyCode::KeyE, Vec3::Y),
-        (KeyCode::KeyQ, Vec3::NEG_Y),
-    ] {
-        if input.pressed(key) {
-            dir += d;
-        }
-    }
-    let speed = if input.pressed(KeyCode::ShiftLeft) {
-        120.0
-    } else {
-        30.0
-    };
-    transform.translation += dir.normalize_or_zero() * speed * time.delta_secs();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -568,12 +512,7 @@ fn on_captured(captured: On<ScreenshotCaptured>, mut shots: ResMut<Shots>) {
     let Some(&(name, _, _)) = shots.list.get(shots.index) else {
         return;
     };
-    let image = &captured.image;
-    let varied = image.data.as_ref().is_some_and(|data| {
-        let first = data.get(..4).unwrap_or(&[]);
-        let differing = data.chunks_exact(4).filter(|p| *p != first).count();
-        differing * 10 > data.len() / 4
-    });
+    let varied = common::is_drawn(&captured);
     if !varied && shots.attempts < 40 {
         // The pipelines are still compiling (slow on a software rasteriser): try again.
         shots.attempts += 1;
@@ -584,14 +523,7 @@ fn on_captured(captured: On<ScreenshotCaptured>, mut shots: ResMut<Shots>) {
     if !varied {
         warn!("{name}: the frame still looks blank; saving it anyway");
     }
-    let path = shots.dir.join(format!("{name}.png"));
-    match image.clone().try_into_dynamic() {
-        Ok(img) => match img.to_rgb8().save(&path) {
-            Ok(()) => info!("saved {}", path.display()),
-            Err(e) => error!("cannot save {}: {e}", path.display()),
-        },
-        Err(e) => error!("cannot convert the screenshot: {e}"),
-    }
+    common::save_capture(&captured, &shots.dir.join(format!("{name}.png")));
     shots.attempts = 0;
     shots.index += 1;
     shots.wait = shots.frames;

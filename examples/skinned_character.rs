@@ -18,7 +18,6 @@ use bevy::camera::RenderTarget;
 use bevy::camera::primitives::Aabb;
 use bevy::gltf::Gltf;
 use bevy::prelude::*;
-use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
@@ -218,13 +217,7 @@ fn setup(
         },
     ));
     if shots.is_some() {
-        let image = Image::new_target_texture(
-            SHOT_SIZE.0,
-            SHOT_SIZE.1,
-            TextureFormat::Rgba8Unorm,
-            Some(TextureFormat::Rgba8UnormSrgb),
-        );
-        let handle = images.add(image);
+        let handle = common::offscreen_image(&mut images, (SHOT_SIZE.0, SHOT_SIZE.1));
         camera.insert(RenderTarget::Image(handle.clone().into()));
         commands.insert_resource(ShotTarget(handle));
     }

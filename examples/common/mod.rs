@@ -7,6 +7,7 @@ use bevy::camera::primitives::Aabb;
 use bevy::gltf::Gltf;
 use bevy::input::mouse::AccumulatedMouseMotion;
 use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::ScreenshotCaptured;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
@@ -174,6 +175,16 @@ pub fn fly_camera(
         };
         transform.translation += dir.normalize_or_zero() * speed * time.delta_secs();
     }
+}
+
+/// An offscreen render target of `size` pixels (sRGB view) for a camera's `RenderTarget`.
+pub fn offscreen_image(images: &mut Assets<Image>, size: (u32, u32)) -> Handle<Image> {
+    images.add(Image::new_target_texture(
+        size.0,
+        size.1,
+        TextureFormat::Rgba8Unorm,
+        Some(TextureFormat::Rgba8UnormSrgb),
+    ))
 }
 
 /// Whether a captured frame shows something: more than a tenth of its pixels differ from
