@@ -6,7 +6,9 @@
 //!
 //! `--headless --frames N --screenshot DIR` renders offscreen (a camera with an `Image` render
 //! target, no window), waits N frames per shot, and writes `corner.png`, `corner_regions.png`,
-//! `top.png`, `top_regions.png` and `counts.json` to `DIR`.
+//! `top.png`, `top_regions.png` and `counts.json` to `DIR`. `counts.json` also holds the frame
+//! time of the corner view at the budget against every region at full detail (135,200
+//! triangles), 30 frames each, in the same run.
 
 mod common;
 
@@ -15,7 +17,8 @@ use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
-    AslodOverlay, AslodPlugin, AslodStats, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
+    AslodOverlay, AslodPlugin, AslodStats, FullDetail, LodRegion, MultiresInstance, MultiresMesh,
+    MultiresModel,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use common::{FlyCamera, fly_camera};
@@ -412,8 +415,26 @@ struct Shots {
     pending: bool,
     attempts: u32,
     views: serde_json::Map<String, serde_json::Value>,
+    /// After the shots: frame periods (ms) at the budget, then at full detail.
+    timing: Option<Timing>,
     done: bool,
 }
+
+/// The frame-time comparison of the corner view: [`TIMING_FRAMES`] frames under the budget,
+/// then as many with every region at full detail ([`FullDetail`]), after a few to settle.
+#[derive(Debug, Default)]
+struct Timing {
+    last: Option<std::time::Instant>,
+    settle: u32,
+    lod: Vec<f64>,
+    full: Vec<f64>,
+    triangles: [u64; 2],
+}
+
+/// Frames timed in each half of the comparison.
+const TIMING_FRAMES: usize = 30;
+/// Frames before each half is timed.
+const TIMING_SETTLE: u32 = 5;
 
 impl Shots {
     fn new(dir: PathBuf, frames: u32) -> Self {
@@ -431,6 +452,7 @@ impl Shots {
             pending: false,
             attempts: 0,
             views: serde_json::Map::new(),
+            timing: None,
             done: false,
         }
     }
@@ -445,10 +467,23 @@ fn drive_shots(
     target: Option<Res<ShotTarget>>,
     mut camera: Query<&mut Transform, With<MainCamera>>,
     models: Query<&MultiresInstance>,
+    mut full_detail: ResMut<FullDetail>,
+    stats: Res<AslodStats>,
     mut exit: MessageWriter<AppExit>,
 ) {
     if shots.done {
         exit.write(AppExit::Success);
+        return;
+    }
+    if shots.timing.is_some() {
+        if let Ok(mut transform) = camera.single_mut() {
+            transform.set_if_neq(View::Corner.transform());
+        }
+        shading.by_region = false;
+        overlay.0 = false;
+        if time_frames(&mut shots, &mut full_detail, &stats) {
+            write_counts(&mut shots);
+        }
         return;
     }
     let Some(&(name, view, by_region)) = shots.list.get(shots.index) else {
@@ -529,27 +564,91 @@ fn on_captured(captured: On<ScreenshotCaptured>, mut shots: ResMut<Shots>) {
     shots.wait = shots.frames;
     shots.pending = false;
     if shots.index == shots.list.len() {
-        let max_total = shots
-            .views
-            .values()
-            .filter_map(|v| v["total"].as_u64())
-            .max()
-            .unwrap_or(0);
-        let json = serde_json::json!({
-            "budget": BUDGET,
-            "source_triangles": (SIDE - 1) * (SIDE - 1) * 2,
-            "regions": 36,
-            "total": max_total,
-            "views": shots.views,
+        shots.timing = Some(Timing {
+            settle: TIMING_SETTLE,
+            ..default()
         });
-        let path = shots.dir.join("counts.json");
-        match serde_json::to_string_pretty(&json) {
-            Ok(text) => match std::fs::write(&path, text) {
-                Ok(()) => info!("saved {}", path.display()),
-                Err(e) => error!("cannot write {}: {e}", path.display()),
-            },
-            Err(e) => error!("cannot encode counts: {e}"),
-        }
-        shots.done = true;
     }
+}
+
+/// Times one frame of the comparison; `true` once both halves are done.
+fn time_frames(shots: &mut Shots, full_detail: &mut FullDetail, stats: &AslodStats) -> bool {
+    let Some(timing) = &mut shots.timing else {
+        return false;
+    };
+    let now = std::time::Instant::now();
+    let period = timing.last.map(|t| (now - t).as_secs_f64() * 1e3);
+    timing.last = Some(now);
+    if timing.settle > 0 {
+        timing.settle -= 1;
+        return false;
+    }
+    let Some(period) = period else {
+        return false;
+    };
+    let half = usize::from(full_detail.0);
+    timing.triangles[half] = stats.triangles;
+    let list = if full_detail.0 {
+        &mut timing.full
+    } else {
+        &mut timing.lod
+    };
+    list.push(period);
+    if list.len() < TIMING_FRAMES {
+        return false;
+    }
+    if !full_detail.0 {
+        full_detail.0 = true;
+        timing.settle = TIMING_SETTLE;
+        return false;
+    }
+    full_detail.0 = false;
+    true
+}
+
+fn median_p95(values: &[f64]) -> serde_json::Value {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        return serde_json::Value::Null;
+    }
+    serde_json::json!({
+        "median_ms": v[v.len() / 2],
+        "p95_ms": v[((v.len() as f64 * 0.95) as usize).min(v.len() - 1)],
+    })
+}
+
+/// Writes `counts.json`: per-view counts and the frame-time comparison.
+fn write_counts(shots: &mut Shots) {
+    let timing = shots.timing.take().unwrap_or_default();
+    let frame_time = serde_json::json!({
+        "view": "corner",
+        "frames": TIMING_FRAMES,
+        "budget": { "triangles": timing.triangles[0], "frame": median_p95(&timing.lod) },
+        "full_detail": { "triangles": timing.triangles[1], "frame": median_p95(&timing.full) },
+    });
+    info!("frame time: {frame_time}");
+    let max_total = shots
+        .views
+        .values()
+        .filter_map(|v| v["total"].as_u64())
+        .max()
+        .unwrap_or(0);
+    let json = serde_json::json!({
+        "budget": BUDGET,
+        "source_triangles": (SIDE - 1) * (SIDE - 1) * 2,
+        "regions": 36,
+        "total": max_total,
+        "views": shots.views,
+        "frame_time": frame_time,
+    });
+    let path = shots.dir.join("counts.json");
+    match serde_json::to_string_pretty(&json) {
+        Ok(text) => match std::fs::write(&path, text) {
+            Ok(()) => info!("saved {}", path.display()),
+            Err(e) => error!("cannot write {}: {e}", path.display()),
+        },
+        Err(e) => error!("cannot encode counts: {e}"),
+    }
+    shots.done = true;
 }

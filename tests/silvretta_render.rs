@@ -58,6 +58,16 @@ fn silvretta_renders_offscreen_with_counts_under_budget() {
         assert!(total <= budget, "{view}: {total} > {budget}");
         assert!(total > budget / 2, "{view}: the budget is used ({total})");
     }
+    let timing = &json["frame_time"];
+    let lod = timing["budget"]["triangles"]
+        .as_u64()
+        .expect("triangles at the budget");
+    assert!(lod <= budget, "timed at {lod} triangles");
+    assert_eq!(timing["full_detail"]["triangles"].as_u64(), Some(135_200));
+    for half in ["budget", "full_detail"] {
+        let median = timing[half]["frame"]["median_ms"].as_f64().expect("median");
+        assert!(median > 0.0 && median.is_finite(), "{half}: {median}");
+    }
     let corner = &json["views"]["corner"];
     let count = |r: &serde_json::Value| {
         corner["regions"][r.as_u64().unwrap() as usize]
