@@ -37,7 +37,7 @@ use bevy_aslod::plugin::{
 };
 use common::{FlyCamera, fly_camera};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// The paper's budget for the aerobic class.
 const BUDGET: u32 = 5_000;
@@ -51,7 +51,9 @@ const SHOT_SIZE: (u32, u32) = (960, 540);
 const SETTLE_FRAMES: u32 = 12;
 /// Seconds of dance per scripted frame (120 frames: the mannequin's whole 6 s routine).
 const DANCE_SECONDS_PER_FRAME: f32 = 0.05;
-/// Seconds the interactive scripted camera takes for the whole path.
+/// How long the headless run waits for the model, its clip and its players before it gives up.
+const MAX_LOADING: Duration = Duration::from_secs(180);
+/// Seconds the interactive scripted camera takes along its path and back.
 const SCRIPT_SECONDS: f32 = 12.0;
 
 fn main() {
@@ -776,6 +778,8 @@ struct Report {
     attempts: u32,
     /// A warm-up screenshot came back non-blank.
     drawn: bool,
+    /// When the wait for the model began (see [`MAX_LOADING`]).
+    loading_since: Option<Instant>,
     /// Screenshots taken, and the names of those saved.
     shots_done: usize,
     saved: Vec<String>,
@@ -796,6 +800,7 @@ impl Report {
             pending: false,
             attempts: 0,
             drawn: false,
+            loading_since: None,
             shots_done: 0,
             saved: Vec::new(),
         }
@@ -830,6 +835,24 @@ fn drive_report(
                 report.stage = Stage::Warmup;
                 report.wait = 3;
                 apply_frame(&class, 1, frames, &mut camera, &mut players);
+            } else {
+                let started = *report.loading_since.get_or_insert(now);
+                if now - started > MAX_LOADING {
+                    error!(
+                        "the class is not ready after {} s: clip {}, dancers placed {}, players {} of {} (a model without skinned or multiresolution meshes cannot dance)",
+                        MAX_LOADING.as_secs(),
+                        if class.clip.is_some() {
+                            "found"
+                        } else {
+                            "not found"
+                        },
+                        class.placed,
+                        players.iter().count(),
+                        class.dancers.len()
+                    );
+                    exit.write(AppExit::error());
+                    report.stage = Stage::Exiting;
+                }
             }
         }
         Stage::Warmup => {

@@ -27,11 +27,14 @@ use bevy_aslod::plugin::{
 use bevy_aslod::skin::SkinRegionKind;
 use common::{FlyCamera, fly_camera};
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 /// Offscreen image size.
 const SHOT_SIZE: (u32, u32) = (800, 800);
 /// The default budget.
 const BUDGET: u32 = 5_000;
+/// How long the headless run waits for the character and its clip before it gives up.
+const MAX_LOADING: Duration = Duration::from_secs(180);
 /// The clip played when the model has it and `--clip` names none.
 const DEFAULT_CLIP: &str = "Dance";
 
@@ -104,6 +107,7 @@ fn main() {
             index: 0,
             pending: false,
             attempts: 0,
+            loading_since: None,
         })
         .add_systems(Update, drive_shots.after(update_label));
     } else {
@@ -241,10 +245,16 @@ fn play_clip(
     mut character: ResMut<Character>,
     gltfs: Res<Assets<Gltf>>,
     mut graphs: ResMut<Assets<AnimationGraph>>,
+    asset_server: Res<AssetServer>,
     mut players: Query<(Entity, &mut AnimationPlayer), Without<AnimationGraphHandle>>,
     mut exit: MessageWriter<AppExit>,
 ) {
     if character.clip.is_some() {
+        return;
+    }
+    if let Some(bevy::asset::LoadState::Failed(e)) = asset_server.get_load_state(&character.gltf) {
+        error!("cannot load {}: {e}", character.file);
+        exit.write(AppExit::error());
         return;
     }
     let Some(gltf) = gltfs.get(&character.gltf) else {
@@ -399,6 +409,8 @@ struct Shots {
     index: usize,
     pending: bool,
     attempts: u32,
+    /// When the wait for the character began (see [`MAX_LOADING`]).
+    loading_since: Option<Instant>,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -414,7 +426,21 @@ fn drive_shots(
     assets: Res<Assets<MultiresMesh>>,
     mut exit: MessageWriter<AppExit>,
 ) {
-    if character.framed.is_none() || character.clip.is_none() || shots.pending {
+    if character.framed.is_none() || character.clip.is_none() {
+        let since = *shots.loading_since.get_or_insert_with(Instant::now);
+        if since.elapsed() > MAX_LOADING {
+            error!(
+                "{} is not ready after {} s: framed {}, clip playing {} (it needs an AnimationPlayer and a clip)",
+                character.file,
+                MAX_LOADING.as_secs(),
+                character.framed.is_some(),
+                character.clip.is_some()
+            );
+            exit.write(AppExit::error());
+        }
+        return;
+    }
+    if shots.pending {
         return;
     }
     if shots.index == SHOT_NAMES.len() {

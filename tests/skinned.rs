@@ -329,7 +329,6 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
         .fold((0, 0), |(lo, hi), r| {
             (lo + r.min_triangles(), hi + r.max_triangles())
         });
-    let mut checked = 0;
     for (step, fraction) in [0.0f32, 0.02, 0.1, 0.3, 0.7, 1.0].into_iter().enumerate() {
         let budget = lo as u32 + ((hi - lo) as f32 * fraction) as u32;
         app.world_mut().resource_mut::<PolygonBudget>().total = budget.max(1);
@@ -339,11 +338,20 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
             let stats = *app.world().resource::<AslodStats>();
             assert!(
                 stats.triangles + u64::from(stats.fixed_cost) <= u64::from(budget.max(1)),
-                "P = {budget}: {} triangles",
-                stats.triangles
+                "P = {budget}: {} triangles + {} fixed",
+                stats.triangles,
+                stats.fixed_cost
             );
             let (height, triangles, pairs) = compare(&mut app, root);
             assert_eq!(triangles as u64, stats.triangles);
+            // What the region meshes draw is what the caches hold: nothing stale, nothing
+            // missing (degenerate border triangles are counted by neither).
+            assert!(!pairs.is_empty());
+            assert_eq!(
+                pairs.len() as u64,
+                3 * stats.triangles,
+                "P = {budget}: drawn indices"
+            );
             // One place per source vertex.
             let mut place: std::collections::HashMap<u32, Vec3> = Default::default();
             for &(v, _, drawn) in &pairs {
@@ -369,8 +377,6 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
                     "P = {budget}, t = {t}: edge {a}-{b} has no twin (a crack or a hole)"
                 );
             }
-            checked += 1;
         }
     }
-    assert_eq!(checked, 18);
 }

@@ -98,6 +98,8 @@ pub fn scene_bounds(
     for model in models.models() {
         let (instance, transform) = instances.get(model).ok()?;
         let boxes: Vec<Obb> = match instance.skinned_world_boxes() {
+            // Filled by the plugin's first `Allocate` after the model appears.
+            Some([]) => return None,
             Some(boxes) => boxes.to_vec(),
             None => {
                 let affine = transform.affine();

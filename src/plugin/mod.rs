@@ -201,8 +201,9 @@ impl PolygonBudget {
 
 /// The "no LOD" switch: while it is `true`, every region of every model is kept at its full
 /// detail, whatever the budget and wherever the camera looks (regions out of view too), so an
-/// app can compare the same scene with and without LOD. Skinned regions still blend only
-/// when their bones move. Default `false`.
+/// app can compare the same scene with and without LOD. Like the budget, it is applied in
+/// `Allocate`, which needs an active 3D camera. Skinned regions still blend only when their
+/// bones move. Default `false`.
 #[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[reflect(Resource, Default)]
 pub struct FullDetail(pub bool);

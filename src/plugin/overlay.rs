@@ -90,7 +90,8 @@ fn draw_overlay(models: Query<(&MultiresInstance, &GlobalTransform)>, mut gizmos
 }
 
 /// Puts a label with the triangle count at the centre of each region's box, as seen by the
-/// first active camera; the nearest [`MAX_OVERLAY_LABELS`] regions in front of it get one.
+/// first active camera; the nearest [`MAX_OVERLAY_LABELS`] regions whose centre is in its
+/// viewport get one.
 fn place_labels(
     mut commands: Commands,
     models: Query<(&MultiresInstance, &GlobalTransform)>,
@@ -102,21 +103,26 @@ fn place_labels(
     let Some((camera, eye)) = cameras.iter().find(|(c, _)| c.is_active) else {
         return;
     };
+    let viewport = camera.logical_viewport_rect();
     for (instance, transform) in &models {
         for (obb, _, count) in region_boxes(instance, transform) {
+            // `world_to_viewport` only rejects points behind the camera or past its far plane.
             let Ok(pixel) = camera.world_to_viewport(eye, obb.center) else {
-                continue; // behind the camera or outside the viewport
+                continue;
             };
+            if viewport.is_some_and(|rect| !rect.contains(pixel)) {
+                continue;
+            }
             wanted.push((eye.translation().distance(obb.center), pixel, count));
         }
     }
     wanted.sort_by(|a, b| a.0.total_cmp(&b.0));
     wanted.truncate(MAX_OVERLAY_LABELS);
     let mut next = wanted.iter();
-    for (mut text, mut node, mut visibility) in &mut labels {
+    for (text, node, mut visibility) in &mut labels {
         match next.next() {
             Some(&(_, pixel, count)) => {
-                set_label(&mut text, &mut node, pixel, count);
+                set_label(text, node, pixel, count);
                 visibility.set_if_neq(Visibility::Inherited);
             }
             None => {
@@ -125,15 +131,14 @@ fn place_labels(
         }
     }
     for &(_, pixel, count) in next {
-        let mut text = Text::default();
-        let mut node = Node {
-            position_type: PositionType::Absolute,
-            ..default()
-        };
-        set_label(&mut text, &mut node, pixel, count);
         commands.spawn((
-            text,
-            node,
+            Text(count.to_string()),
+            Node {
+                position_type: PositionType::Absolute,
+                left: Val::Px(pixel.x),
+                top: Val::Px(pixel.y),
+                ..default()
+            },
             TextFont::from_font_size(11.0),
             TextColor(Color::srgb(1.0, 1.0, 0.3)),
             OverlayLabel,
@@ -141,14 +146,13 @@ fn place_labels(
     }
 }
 
-fn set_label(text: &mut Text, node: &mut Node, pixel: Vec2, count: usize) {
-    let left = Val::Px(pixel.x);
-    let top = Val::Px(pixel.y);
+/// Moves and rewrites a label, touching (and so re-laying out) only what changed.
+fn set_label(mut text: Mut<Text>, mut node: Mut<Node>, pixel: Vec2, count: usize) {
+    let (left, top) = (Val::Px(pixel.x), Val::Px(pixel.y));
     if node.left != left || node.top != top {
         node.left = left;
         node.top = top;
     }
-    // Compare before writing, so unchanged labels are not laid out again.
     let label = count.to_string();
     if text.0 != label {
         text.0 = label;
