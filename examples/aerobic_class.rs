@@ -213,9 +213,8 @@ struct Class {
     fixed: Vec<usize>,
     /// Dancers are measured, scaled and shown.
     placed: bool,
-    /// The budget with LOD on (P), kept while LOD is off.
+    /// The budget P the run starts with (the report's).
     budget: u32,
-    lod: bool,
 }
 
 impl Class {
@@ -230,7 +229,6 @@ impl Class {
             fixed: vec![0; args.count],
             placed: false,
             budget: args.budget,
-            lod: true,
         }
     }
 
@@ -585,13 +583,6 @@ fn apply_frame(
     }
 }
 
-/// Switches LOD on (budget P) or off (every region at full detail, through the same
-/// pipeline: the plugin's [`FullDetail`]).
-fn set_lod(class: &mut Class, full_detail: &mut FullDetail, on: bool) {
-    class.lod = on;
-    full_detail.0 = !on;
-}
-
 // ---------------------------------------------------------------------------------------------
 // Interactive mode.
 
@@ -605,7 +596,6 @@ struct Interactive {
 #[allow(clippy::too_many_arguments)]
 fn keys(
     input: Res<ButtonInput<KeyCode>>,
-    mut class: ResMut<Class>,
     mut budget: ResMut<PolygonBudget>,
     mut full_detail: ResMut<FullDetail>,
     mut overlay: ResMut<AslodOverlay>,
@@ -623,8 +613,8 @@ fn keys(
         }
     }
     if input.just_pressed(KeyCode::KeyL) {
-        let on = !class.lod;
-        set_lod(&mut class, &mut full_detail, on);
+        // Off: every region at full detail, through the same pipeline.
+        full_detail.0 = !full_detail.0;
     }
     if input.just_pressed(KeyCode::ArrowUp) || input.just_pressed(KeyCode::ArrowDown) {
         let factor = if input.just_pressed(KeyCode::ArrowUp) {
@@ -632,8 +622,7 @@ fn keys(
         } else {
             0.8
         };
-        class.budget = ((class.budget as f32 * factor).round() as u32).clamp(100, 10_000_000);
-        budget.total = class.budget;
+        budget.total = ((budget.total as f32 * factor).round() as u32).clamp(100, 10_000_000);
     }
     if input.just_pressed(KeyCode::ArrowRight) {
         budget.alpha = (budget.alpha + 0.5).min(10.0);
@@ -676,6 +665,7 @@ fn update_label(
     time: Res<Time>,
     class: Res<Class>,
     budget: Res<PolygonBudget>,
+    full_detail: Res<FullDetail>,
     stats: Res<AslodStats>,
     state: Option<Res<Interactive>>,
     roots: Query<&MultiresSceneModels, With<Dancer>>,
@@ -704,9 +694,9 @@ fn update_label(
         "{} triangles in use / P = {}  (alpha {:.1}, LOD {})\nper dancer: {}{}\nframe {:.1} ms, deform {:.2} ms, {} regions changed\n\
          Up/Down: P  Left/Right: alpha  L: LOD  O: overlay  C: {} camera  Space: pause",
         stats.triangles + u64::from(stats.fixed_cost),
-        class.budget,
+        budget.total,
         budget.alpha,
-        if class.lod { "on" } else { "off" },
+        if full_detail.0 { "off" } else { "on" },
         shown.join(" / "),
         if counts.len() > 8 { " ..." } else { "" },
         time.delta_secs() * 1000.0,
@@ -812,7 +802,7 @@ impl Report {
 fn drive_report(
     mut commands: Commands,
     mut report: ResMut<Report>,
-    mut class: ResMut<Class>,
+    class: Res<Class>,
     mut full_detail: ResMut<FullDetail>,
     mut overlay: ResMut<AslodOverlay>,
     stats: Res<AslodStats>,
@@ -862,7 +852,7 @@ fn drive_report(
                     frame: 0,
                     settle: SETTLE_FRAMES,
                 };
-                set_lod(&mut class, &mut full_detail, true);
+                full_detail.0 = false;
             } else {
                 request_shot(&mut commands, &mut report, target.as_deref());
             }
@@ -897,14 +887,14 @@ fn drive_report(
                 }
             } else if lod {
                 info!("with LOD done; now the same frames at full detail");
-                set_lod(&mut class, &mut full_detail, false);
+                full_detail.0 = true;
                 Stage::Run {
                     lod: false,
                     frame: 0,
                     settle: SETTLE_FRAMES,
                 }
             } else {
-                set_lod(&mut class, &mut full_detail, true);
+                full_detail.0 = false;
                 report.wait = 4;
                 Stage::Shots { index: 0 }
             };

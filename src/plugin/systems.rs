@@ -310,11 +310,16 @@ fn allocate(
                 Some(obb) => *obb,
                 None => instance.obbs[r].transformed(&affine),
             };
-            let area = scratch
-                .cameras
-                .iter()
-                .map(|cam| cam.projected_area(&obb))
-                .fold(0.0f32, f32::max);
+            // Without LOD the areas are not used: skip the projection.
+            let area = if full_detail.0 {
+                0.0
+            } else {
+                scratch
+                    .cameras
+                    .iter()
+                    .map(|cam| cam.projected_area(&obb))
+                    .fold(0.0f32, f32::max)
+            };
             let area = if area.is_finite() { area } else { 0.0 };
             scratch.inputs.push(RegionInput::from_area(
                 area,
