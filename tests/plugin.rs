@@ -144,6 +144,69 @@ fn models_get_one_child_per_region_with_mesh_and_material() {
 }
 
 #[test]
+fn changing_a_models_material_changes_its_regions() {
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let other = spawn_model(&mut app, &handle, Vec3::new(20.0, 0.0, 0.0));
+    app.update();
+    app.update();
+    let region_materials =
+        |app: &mut App, model: Entity| -> Vec<Option<AssetId<StandardMaterial>>> {
+            let mut q = app
+                .world_mut()
+                .query::<(&ChildOf, Option<&MeshMaterial3d<StandardMaterial>>)>();
+            q.iter(app.world())
+                .filter(|(parent, _)| parent.parent() == model)
+                .map(|(_, m)| m.map(|m| m.0.id()))
+                .collect()
+        };
+    let other_before = region_materials(&mut app, other);
+
+    let red = app
+        .world_mut()
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::from_color(Color::srgb(1.0, 0.0, 0.0)));
+    app.world_mut()
+        .entity_mut(model)
+        .insert(MeshMaterial3d(red.clone()));
+    app.update();
+    let now = region_materials(&mut app, model);
+    assert_eq!(now.len(), 4);
+    assert!(now.iter().all(|m| *m == Some(red.id())), "{now:?}");
+    assert_eq!(
+        region_materials(&mut app, other),
+        other_before,
+        "the other model keeps its own"
+    );
+
+    app.world_mut()
+        .entity_mut(model)
+        .remove::<MeshMaterial3d<StandardMaterial>>();
+    app.update();
+    let now = region_materials(&mut app, model);
+    assert!(now.iter().all(Option::is_none), "{now:?}");
+
+    // Removed and given back in one frame: the regions end with the new one.
+    let blue = app
+        .world_mut()
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::from_color(Color::srgb(0.0, 0.0, 1.0)));
+    app.world_mut()
+        .entity_mut(model)
+        .insert(MeshMaterial3d(red));
+    app.update();
+    app.world_mut()
+        .entity_mut(model)
+        .remove::<MeshMaterial3d<StandardMaterial>>()
+        .insert(MeshMaterial3d(blue.clone()));
+    app.update();
+    let now = region_materials(&mut app, model);
+    assert!(now.iter().all(|m| *m == Some(blue.id())), "{now:?}");
+}
+
+#[test]
 fn uploaded_indices_match_the_caches() {
     let mut app = app(1_000);
     let handle = add_asset(&mut app);

@@ -611,7 +611,8 @@ fn shortest_path_weights_then_decompose_gives_back_the_painting() {
 
 // --- blend ------------------------------------------------------------------------------------
 
-/// The textbook formula, one influence at a time.
+/// The textbook formula, one influence at a time (the normal not normalised, as `blend`
+/// leaves it).
 fn naive(matrices: &[Mat4], p: Vec3, n: Vec3, j: [u16; 4], w: [f32; 4]) -> (Vec3, Vec3) {
     let mut pos = Vec3::ZERO;
     let mut nor = Vec3::ZERO;
@@ -620,7 +621,7 @@ fn naive(matrices: &[Mat4], p: Vec3, n: Vec3, j: [u16; 4], w: [f32; 4]) -> (Vec3
         pos += w[k] * m.transform_point3(p);
         nor += w[k] * m.transform_vector3(n);
     }
-    (pos, nor.normalize())
+    (pos, nor)
 }
 
 #[test]
@@ -658,11 +659,10 @@ fn blend_matches_the_naive_formula() {
             out_p[v]
         );
         assert!(
-            out_n[v].distance(nor) < 1e-4,
+            out_n[v].distance(nor) < 1e-4 * (1.0 + nor.length()),
             "vertex {v}: {} vs {nor}",
             out_n[v]
         );
-        assert!((out_n[v].length() - 1.0).abs() < 1e-5);
         assert_eq!(
             skin_position(
                 &matrices,

@@ -257,6 +257,8 @@ pub struct MultiresInstance {
     skin: Option<skin::SkinState>,
     /// Region entities that are not children of the model (rigid regions under joints).
     detached: Vec<Entity>,
+    /// Every region entity, by region.
+    region_entities: Vec<Entity>,
 }
 
 impl MultiresInstance {

@@ -7,6 +7,8 @@ use crate::skin::DEFAULT_RIGID_DELTA;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
+use bevy::tasks::futures::check_ready;
+use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
 
 /// Put on the root of a scene (next to the glTF loader's scene root component): once the
 /// scene has spawned and its meshes are loaded, the plugin turns every mesh under it into a
@@ -22,8 +24,10 @@ use bevy::prelude::*;
 ///   cost ([`CountInBudget`]), with a warning (once).
 ///
 /// The original mesh handle moves to [`MultiresSourceMesh`] on its entity. Assets are built
-/// once per source mesh and shared by every scene that shows it. When it is done the plugin
-/// adds [`MultiresSceneModels`] to this entity.
+/// once per source mesh, on Bevy's [`AsyncComputeTaskPool`], and shared by every scene that
+/// shows it; until all of a scene's assets are ready, the scene keeps showing its original
+/// meshes (skinned by Bevy as usual), so no frame stalls on the build. When it is done the
+/// plugin adds [`MultiresSceneModels`] to this entity.
 #[derive(Component, Clone, Debug, PartialEq)]
 pub struct MultiresScene {
     /// δ: a skinned vertex whose dominant weight is at least `1 − δ` is rigid. Default
@@ -73,10 +77,58 @@ pub(crate) struct SceneAssetCache {
     warned_morph: bool,
 }
 
-#[derive(Clone)]
 enum Built {
+    /// Building on the async compute pool.
+    Pending(Task<Result<MultiresMesh, super::MultiresError>>),
     Ok(Handle<MultiresMesh>, usize),
     Failed,
+}
+
+/// Builds one source mesh's asset (runs on the async compute pool).
+fn build(
+    mesh: Result<crate::mesh::IndexedMesh, crate::mesh::MeshError>,
+    inverse_bindposes: Option<Vec<Mat4>>,
+    rigid_delta: f32,
+    static_partition: PartitionSpec,
+) -> Result<MultiresMesh, super::MultiresError> {
+    let indexed = mesh?;
+    match inverse_bindposes {
+        Some(ib) => MultiresMesh::from_skinned(&indexed, &ib, rigid_delta),
+        None => {
+            let partition = static_partition.partition(&indexed)?;
+            MultiresMesh::from_indexed(&indexed, &partition)
+        }
+    }
+}
+
+impl SceneAssetCache {
+    /// Collects the builds that finished: their assets join `Assets<MultiresMesh>`.
+    fn poll(&mut self, multires: &mut Assets<MultiresMesh>) {
+        for built in self.built.values_mut() {
+            let Built::Pending(task) = built else {
+                continue;
+            };
+            let Some(result) = check_ready(task) else {
+                continue;
+            };
+            *built = match result {
+                Ok(asset) => {
+                    // Said once per source mesh, not once per scene that shows it.
+                    let more = asset.skin().map_or(0, |s| s.more_than_two());
+                    if more > 0 {
+                        info!(
+                            "{more} skinned vertices have more than two influences: they join the region of their two largest and blend with all of them"
+                        );
+                    }
+                    Built::Ok(multires.add(asset), more)
+                }
+                Err(e) => {
+                    warn!("a mesh stays conventional (fixed cost): {e}");
+                    Built::Failed
+                }
+            };
+        }
+    }
 }
 
 /// Converts the meshes of every spawned [`MultiresScene`] once they are all loaded.
@@ -105,6 +157,7 @@ pub(crate) fn convert_scenes(
         }
         return;
     };
+    cache.poll(&mut multires);
     for (root, options) in &scenes {
         let found: Vec<Entity> = children
             .iter_descendants(root)
@@ -121,6 +174,39 @@ pub(crate) fn convert_scenes(
                 && skin.is_none_or(|s| bindposes.contains(&s.inverse_bindposes))
         });
         if !loaded {
+            continue;
+        }
+        // Start the builds this scene needs that nobody started; convert once all are done.
+        let mut pending = false;
+        for &entity in &found {
+            let Ok((mesh3d, skin, _)) = mesh_entities.get(entity) else {
+                continue;
+            };
+            let Some(mesh) = meshes.get(&mesh3d.0) else {
+                continue;
+            };
+            if mesh.has_morph_targets() {
+                continue;
+            }
+            let key = (mesh3d.0.id(), skin.map(|s| s.inverse_bindposes.id()));
+            let built = cache.built.entry(key).or_insert_with(|| {
+                // The conversion copies the mesh here; the build runs on the pool.
+                let indexed = from_bevy_mesh(mesh);
+                let ib = skin.map(|skin| {
+                    bindposes
+                        .get(&skin.inverse_bindposes)
+                        .map(|b| b.to_vec())
+                        .unwrap_or_default()
+                });
+                let (delta, partition) = (options.rigid_delta, options.static_partition);
+                Built::Pending(
+                    AsyncComputeTaskPool::get_or_init(TaskPool::default)
+                        .spawn(async move { build(indexed, ib, delta, partition) }),
+                )
+            });
+            pending |= matches!(built, Built::Pending(_));
+        }
+        if pending {
             continue;
         }
         let mut result = MultiresSceneModels::default();
@@ -143,45 +229,11 @@ pub(crate) fn convert_scenes(
                 continue;
             }
             let key = (mesh3d.0.id(), skin.map(|s| s.inverse_bindposes.id()));
-            let built = cache
-                .built
-                .entry(key)
-                .or_insert_with(|| {
-                    let asset = from_bevy_mesh(mesh)
-                        .map_err(super::MultiresError::from)
-                        .and_then(|indexed| match skin {
-                            Some(skin) => {
-                                let ib = bindposes
-                                    .get(&skin.inverse_bindposes)
-                                    .map(|b| b.to_vec())
-                                    .unwrap_or_default();
-                                MultiresMesh::from_skinned(&indexed, &ib, options.rigid_delta)
-                            }
-                            None => options
-                                .static_partition
-                                .partition(&indexed)
-                                .map_err(super::MultiresError::from)
-                                .and_then(|p| MultiresMesh::from_indexed(&indexed, &p)),
-                        });
-                    match asset {
-                        Ok(asset) => {
-                            // Said once per source mesh, not once per scene that shows it.
-                            let more = asset.skin().map_or(0, |s| s.more_than_two());
-                            if more > 0 {
-                                info!(
-                                    "{more} skinned vertices have more than two influences: they join the region of their two largest and blend with all of them"
-                                );
-                            }
-                            Built::Ok(multires.add(asset), more)
-                        }
-                        Err(e) => {
-                            warn!("a mesh stays conventional (fixed cost): {e}");
-                            Built::Failed
-                        }
-                    }
-                })
-                .clone();
-            let Built::Ok(handle, more_than_two) = built else {
+            let built = match cache.built.get(&key) {
+                Some(Built::Ok(handle, more)) => Some((handle.clone(), *more)),
+                _ => None,
+            };
+            let Some((handle, more_than_two)) = built else {
                 commands.entity(entity).insert(CountInBudget);
                 result.fixed.push(entity);
                 continue;

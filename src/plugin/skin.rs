@@ -419,11 +419,13 @@ impl Job<'_> {
             Some(&mut r.normals),
         );
         if let Some(to_local) = self.to_local {
+            // Normals stay unnormalised, as `blend` leaves them: Bevy's vertex shader
+            // normalises every normal.
             let normal_matrix = Mat3::from(to_local.matrix3).inverse().transpose();
             for &v in &r.written {
                 let v = v as usize;
                 r.positions[v] = to_local.transform_point3(r.positions[v]);
-                r.normals[v] = (normal_matrix * r.normals[v]).normalize_or(r.normals[v]);
+                r.normals[v] = normal_matrix * r.normals[v];
             }
         }
     }

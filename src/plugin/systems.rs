@@ -52,6 +52,7 @@ pub(super) fn configure(app: &mut App) {
                 super::scene::convert_scenes,
                 rebuild_modified,
                 spawn_regions,
+                propagate_materials,
             )
                 .chain()
                 .in_set(AslodSystems::Spawn),
@@ -101,6 +102,7 @@ fn spawn_regions(
             .as_ref()
             .map(|b| SkinState::new(b.clone(), &regions));
         let mut handles = Vec::with_capacity(regions.regions().len());
+        let mut region_entities = Vec::with_capacity(regions.regions().len());
         let mut detached = Vec::new();
         for (r, region) in regions.regions().iter().enumerate() {
             let (mesh, parent, rigid) = match &binding {
@@ -151,6 +153,7 @@ fn spawn_regions(
             if rigid {
                 detached.push(child.id());
             }
+            region_entities.push(child.id());
             handles.push(handle);
         }
         if material.is_none() {
@@ -171,7 +174,41 @@ fn spawn_regions(
             meshes: handles,
             skin: state,
             detached,
+            region_entities,
         });
+    }
+}
+
+/// A model's material changed (or was removed): its regions follow. Changes to the material
+/// asset itself need nothing, the regions share its handle.
+#[allow(clippy::type_complexity)]
+fn propagate_materials(
+    mut commands: Commands,
+    changed: Query<
+        (&MultiresInstance, &MeshMaterial3d<StandardMaterial>),
+        Changed<MeshMaterial3d<StandardMaterial>>,
+    >,
+    // Removed and not given back (in the same frame) by the time this runs.
+    instances: Query<&MultiresInstance, Without<MeshMaterial3d<StandardMaterial>>>,
+    mut removed: RemovedComponents<MeshMaterial3d<StandardMaterial>>,
+) {
+    for (instance, material) in &changed {
+        for &region in &instance.region_entities {
+            if let Ok(mut region) = commands.get_entity(region) {
+                region.insert(material.clone());
+            }
+        }
+    }
+    for model in removed.read() {
+        // Despawned models have no instance any more: nothing to do.
+        let Ok(instance) = instances.get(model) else {
+            continue;
+        };
+        for &region in &instance.region_entities {
+            if let Ok(mut region) = commands.get_entity(region) {
+                region.remove::<MeshMaterial3d<StandardMaterial>>();
+            }
+        }
     }
 }
 

@@ -5,11 +5,12 @@ use glam::{Mat4, Vec3, Vec4};
 
 /// The blended affine skinning matrix of one vertex, as four columns.
 ///
-/// `rigid` takes the first (dominant) joint alone with weight 1. Otherwise the matrices are
-/// summed weight by weight, stopping at the first weight that is not positive (weights are
-/// sorted largest first). Joints without a matrix are skipped. Every placement in this module
-/// goes through this one function, so a vertex gets bit-for-bit the same result whichever
-/// entry point places it.
+/// `rigid` takes the first (dominant) joint alone with weight 1, and so does a vertex with a
+/// single influence (whose weight is exactly 1 after [`Influences`] normalised it).
+/// Otherwise the matrices are summed weight by weight, stopping at the first weight that is
+/// not positive (weights are sorted largest first). Joints without a matrix are skipped.
+/// Every placement in this module goes through this one function, so a vertex gets
+/// bit-for-bit the same result whichever entry point places it.
 #[inline(always)]
 fn skin_matrix(
     matrices: &[Mat4],
@@ -17,7 +18,8 @@ fn skin_matrix(
     weights: [f32; MAX_INFLUENCES],
     rigid: bool,
 ) -> [Vec4; 4] {
-    if rigid {
+    // `!(w > 0.0)` is also true for NaN.
+    if rigid || !(weights[1] > 0.0) {
         return match matrices.get(usize::from(joints[0])) {
             Some(m) => [m.x_axis, m.y_axis, m.z_axis, m.w_axis],
             None => {
@@ -29,7 +31,7 @@ fn skin_matrix(
     let mut c = [Vec4::ZERO; 4];
     for k in 0..MAX_INFLUENCES {
         let w = weights[k];
-        if w <= 0.0 || w.is_nan() {
+        if !(w > 0.0) {
             break;
         }
         let Some(m) = matrices.get(usize::from(joints[k])) else {
@@ -49,11 +51,10 @@ fn apply_point(c: &[Vec4; 4], p: Vec3) -> Vec3 {
     (c[0] * p.x + c[1] * p.y + c[2] * p.z + c[3]).truncate()
 }
 
+/// The blended upper 3x3 applied to a normal, not normalised (see [`blend`]).
 #[inline(always)]
 fn apply_normal(c: &[Vec4; 4], n: Vec3) -> Vec3 {
-    (c[0] * n.x + c[1] * n.y + c[2] * n.z)
-        .truncate()
-        .normalize_or(n)
+    (c[0] * n.x + c[1] * n.y + c[2] * n.z).truncate()
 }
 
 /// Places one vertex the way [`blend_with_rigid`] does: a rigid vertex by its dominant
@@ -77,7 +78,8 @@ pub fn skin_position(
 }
 
 /// Turns one normal the way [`blend_with_rigid`] does: the blended matrix's upper 3x3 applied
-/// to the normal, normalised; the input normal when the result has no length.
+/// to the normal, **not normalised** (see [`blend`] for why); call
+/// [`Vec3::normalize_or`] on it when a unit vector is needed.
 ///
 /// See also [`skin_position`].
 #[inline]
@@ -101,10 +103,14 @@ pub fn skin_normal(
 /// - `out_positions[i] = Σ_k w_k M_{j_k} positions[i]`, which is the blended matrix
 ///   `Σ_k w_k M_{j_k}` applied to the point (one matrix product per vertex, however many
 ///   influences);
-/// - `out_normals[i]` = the blended matrix's upper 3x3 applied to `normals[i]`, normalised.
-///   This is exact for rotations and uniform scales; under non-uniform scale it is the
-///   usual linear-blend approximation, not the inverse transpose. A normal that blends to
-///   zero length keeps its input value.
+/// - `out_normals[i]` = the blended matrix's upper 3x3 applied to `normals[i]`. Its direction
+///   is exact for rotations and uniform scales; under non-uniform scale it is the usual
+///   linear-blend approximation, not the inverse transpose. It is **not normalised**:
+///   blending two rotations shortens it a little (by the cosine of half the angle between
+///   them, at most), and that length carries no meaning. Renormalise before shading, as
+///   every renderer of skinned normals does anyway: Bevy's vertex shader normalises each
+///   normal (`mesh_normal_local_to_world`), so normalising here would pay for it twice,
+///   and it is about half the cost of a one-influence vertex.
 ///
 /// Every other entry of the outputs is left untouched, so a caller keeps one full-size
 /// buffer per model and refreshes only what the cache draws. Normals are written only when
