@@ -40,6 +40,16 @@ fn oriented_key([a, b, c]: [u32; 3]) -> Option<([u32; 3], bool)> {
     })
 }
 
+/// Every triangle without a foreign corner has three corners at distinct positions (checked
+/// in debug builds: `write_indices` copies such triangles without looking).
+fn own_triangles_have_area(data: &super::Region, indices: &[u32]) -> bool {
+    let border: std::collections::HashSet<u32> = data.border.iter().map(|b| b.corner / 3).collect();
+    indices.chunks_exact(3).enumerate().all(|(t, tri)| {
+        let [a, b, c] = [0, 1, 2].map(|k| data.position_of[tri[k] as usize]);
+        border.contains(&(t as u32)) || (a != b && b != c && a != c)
+    })
+}
+
 impl RegionCaches {
     /// Every region at full detail, every region dirty.
     #[must_use]
@@ -194,15 +204,37 @@ impl RegionCaches {
             skip.extend(rest.iter().skip(1));
         }
         skip.sort_unstable();
+        // Own triangles are copied in runs; only border triangles (those with a foreign
+        // corner, listed in `data.border` in corner order) are checked.
         out.clear();
-        for (t, tri) in indices.chunks_exact(3).enumerate() {
+        out.reserve(indices.len());
+        let mut next = 0; // first triangle not yet copied or checked
+        let mut last_triangle = u32::MAX;
+        for bc in &data.border {
+            if bc.corner as usize >= active {
+                break;
+            }
+            let t = bc.corner / 3;
+            if t == last_triangle {
+                continue;
+            }
+            last_triangle = t;
+            let t = t as usize;
+            out.extend_from_slice(&indices[3 * next..3 * t]);
+            let tri = &indices[3 * t..3 * t + 3];
             // Two corners at one position (seam copies count as one) make no area.
             let [a, b, c] = [0, 1, 2].map(|k| data.position_of[tri[k] as usize]);
             let degenerate = a == b || b == c || a == c;
             if !degenerate && skip.binary_search(&(t as u32)).is_err() {
                 out.extend_from_slice(tri);
             }
+            next = t + 1;
         }
+        out.extend_from_slice(&indices[3 * next..]);
+        debug_assert!(
+            own_triangles_have_area(data, indices),
+            "a region's own collapses never leave a triangle without area"
+        );
         self.skip = skip;
         self.keys = keys;
         self.dirty[region] = false;
