@@ -259,6 +259,10 @@ pub struct MultiresInstance {
     detached: Vec<Entity>,
     /// Every region entity, by region.
     region_entities: Vec<Entity>,
+    /// Unskinned models: per region, whether `SelectLod` wrote a new index buffer, and that
+    /// buffer, for `Upload` to swap into the region's mesh. After the swap it holds the
+    /// mesh's old buffer, so steady state allocates nothing.
+    staged: Vec<(bool, Vec<u32>)>,
 }
 
 impl MultiresInstance {

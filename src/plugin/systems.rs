@@ -15,7 +15,9 @@ use bevy::mesh::Indices;
 use bevy::mesh::VertexAttributeValues;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
+use bevy::tasks::{ComputeTaskPool, ParallelSliceMut, TaskPool};
 use bevy::transform::TransformSystems;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Buffers kept across frames.
 #[derive(Resource, Default)]
@@ -24,7 +26,6 @@ pub(crate) struct AslodScratch {
     cameras: Vec<ProjectedAreaCamera>,
     inputs: Vec<RegionInput>,
     counts: Vec<u32>,
-    indices: Vec<u32>,
     warned_budget: bool,
 }
 
@@ -174,6 +175,7 @@ fn spawn_regions(
             meshes: handles,
             skin: state,
             detached,
+            staged: vec![(false, Vec::new()); region_entities.len()],
             region_entities,
         });
     }
@@ -332,47 +334,42 @@ fn allocate(
         .sum();
     let fixed_cost = u32::try_from(fixed_cost).unwrap_or(u32::MAX);
 
+    // Each model's regions fill one run of `inputs`, in query order (the targets are read
+    // back below in the same order); the runs are filled in parallel on the compute pool.
+    let items: Vec<_> = models.iter().collect();
+    let model_count = items.len();
+    let total: usize = items
+        .iter()
+        .map(|(i, _, _)| i.regions.regions().len())
+        .sum();
     scratch.inputs.clear();
-    let mut model_count = 0;
-    for (instance, transform, priority) in &models {
-        model_count += 1;
-        let c = priority
-            .map(|p| p.0)
-            .filter(|c| c.is_finite() && *c > 0.0)
-            .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
-        let affine = transform.affine();
-        let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
-        for (r, region) in instance.regions.regions().iter().enumerate() {
-            let obb = match skinned.and_then(|boxes| boxes.get(r)) {
-                Some(obb) => *obb,
-                None => instance.obbs[r].transformed(&affine),
-            };
-            // Without LOD the areas are not used: skip the projection.
-            let area = if full_detail.0 {
-                0.0
-            } else {
-                scratch
-                    .cameras
-                    .iter()
-                    .map(|cam| cam.projected_area(&obb))
-                    .fold(0.0f32, f32::max)
-            };
-            let area = if area.is_finite() { area } else { 0.0 };
-            scratch.inputs.push(RegionInput::from_area(
-                area,
-                c,
-                region.min_triangles() as u32,
-                region.max_triangles() as u32,
-                instance.caches.triangle_count(r) as u32,
-            ));
+    scratch.inputs.resize(total, RegionInput::default());
+    let mut jobs = Vec::with_capacity(items.len());
+    let mut rest = scratch.inputs.as_mut_slice();
+    for item in items {
+        let (run, tail) = rest.split_at_mut(item.0.regions.regions().len());
+        jobs.push((item, run));
+        rest = tail;
+    }
+    let cameras = &scratch.cameras;
+    let full_detail = full_detail.0;
+    let fill = |chunk: &mut [AreaJob<'_>]| {
+        for ((instance, transform, priority), out) in chunk {
+            region_inputs(instance, transform, *priority, cameras, full_detail, out);
         }
+    };
+    if jobs.len() > 1 {
+        let pool = ComputeTaskPool::get_or_init(TaskPool::default);
+        jobs.par_splat_map_mut(pool, None, |_, chunk| fill(chunk));
+    } else {
+        fill(&mut jobs);
     }
     stats.models = model_count;
     stats.regions = scratch.inputs.len();
     stats.fixed_cost = fixed_cost;
 
     let params = budget.params(fixed_cost);
-    if full_detail.0 {
+    if full_detail {
         // No LOD: every region at its full detail, whatever the budget and the view.
         scratch.counts.clear();
         scratch.counts.extend(scratch.inputs.iter().map(|i| i.max));
@@ -409,20 +406,83 @@ fn allocate(
     diag.add_measurement(&diagnostics::BUDGET, || f64::from(budget.total));
 }
 
-/// `SelectLod`: each region's cache to its target.
+/// One model of `Allocate` and the run of inputs it fills.
+type AreaJob<'a> = (
+    (
+        &'a MultiresInstance,
+        &'a GlobalTransform,
+        Option<&'a LodPriority>,
+    ),
+    &'a mut [RegionInput],
+);
+
+/// One model's [`RegionInput`]s: each region's box in world space, its largest projected
+/// area over the cameras (skipped without LOD, which does not use it), the model's priority.
+fn region_inputs(
+    instance: &MultiresInstance,
+    transform: &GlobalTransform,
+    priority: Option<&LodPriority>,
+    cameras: &[ProjectedAreaCamera],
+    full_detail: bool,
+    out: &mut [RegionInput],
+) {
+    let c = priority
+        .map(|p| p.0)
+        .filter(|c| c.is_finite() && *c > 0.0)
+        .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
+    let affine = transform.affine();
+    let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
+    for ((r, region), input) in instance.regions.regions().iter().enumerate().zip(out) {
+        let area = if full_detail {
+            0.0
+        } else {
+            let obb = match skinned.and_then(|boxes| boxes.get(r)) {
+                Some(obb) => *obb,
+                None => instance.obbs[r].transformed(&affine),
+            };
+            cameras
+                .iter()
+                .map(|cam| cam.projected_area(&obb))
+                .fold(0.0f32, f32::max)
+        };
+        let area = if area.is_finite() { area } else { 0.0 };
+        *input = RegionInput::from_area(
+            area,
+            c,
+            region.min_triangles() as u32,
+            region.max_triangles() as u32,
+            instance.caches.triangle_count(r) as u32,
+        );
+    }
+}
+
+/// `SelectLod`: each region's cache to its target, in parallel over models on the compute
+/// task pool. Unskinned models also write the index buffers of their dirty regions here
+/// (resolving border corners is the costly part of an update), for `Upload` to swap in;
+/// skinned models write theirs in `Deform`.
 fn select_lod(mut models: Query<&mut MultiresInstance>, mut stats: ResMut<AslodStats>) {
     let start = Instant::now();
-    let mut total = 0u64;
-    for mut instance in &mut models {
+    let total = AtomicU64::new(0);
+    models.par_iter_mut().for_each(|mut instance| {
         let instance = &mut *instance;
+        let mut triangles = 0u64;
         for (r, &target) in instance.targets.iter().enumerate() {
-            total += instance
+            triangles += instance
                 .caches
                 .set_triangle_count(&instance.regions, r, target as usize)
                 as u64;
         }
-    }
-    stats.triangles = total;
+        if instance.skin.is_none() {
+            for (r, (ready, buffer)) in instance.staged.iter_mut().enumerate() {
+                if instance.caches.is_dirty(r) {
+                    instance.caches.write_indices(&instance.regions, r, buffer);
+                    *ready = true;
+                }
+            }
+        }
+        total.fetch_add(triangles, Ordering::Relaxed);
+    });
+    stats.triangles = total.into_inner();
     stats.update_ms = start.elapsed().as_secs_f64() * 1e3;
 }
 
@@ -526,11 +586,11 @@ fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) ->
     changed
 }
 
-/// `Upload`: rewrite the index buffers of the dirty regions, and nothing else.
+/// `Upload`: swap in the index buffers `SelectLod` wrote for dirty regions, write what
+/// `Deform` produced for skinned ones, and nothing else.
 fn upload(
     mut models: Query<&mut MultiresInstance>,
     mut meshes: ResMut<Assets<Mesh>>,
-    mut scratch: ResMut<AslodScratch>,
     mut stats: ResMut<AslodStats>,
     mut diag: Diagnostics,
 ) {
@@ -539,32 +599,19 @@ fn upload(
     for mut instance in &mut models {
         let instance = &mut *instance;
         changed += upload_skinned(instance, &mut meshes);
-        for r in 0..instance.caches.region_count() {
-            if !instance.caches.is_dirty(r) {
+        for (r, (ready, buffer)) in instance.staged.iter_mut().enumerate() {
+            if !std::mem::take(ready) {
                 continue;
             }
+            // The mesh was removed by someone else: nothing to write.
             let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) else {
-                // The mesh was removed by someone else: clear the flag, nothing to write.
-                instance
-                    .caches
-                    .write_indices(&instance.regions, r, &mut scratch.indices);
                 continue;
             };
             match mesh.try_indices_mut_option() {
-                // Rewrite the buffer in place: no allocation in steady state.
-                Ok(Some(Indices::U32(indices))) => {
-                    instance.caches.write_indices(&instance.regions, r, indices);
-                }
-                Ok(_) => {
-                    instance
-                        .caches
-                        .write_indices(&instance.regions, r, &mut scratch.indices);
-                    mesh.insert_indices(Indices::U32(scratch.indices.clone()));
-                }
+                // Swap the buffers: no copy, and no allocation in steady state.
+                Ok(Some(Indices::U32(indices))) => std::mem::swap(indices, buffer),
+                Ok(_) => mesh.insert_indices(Indices::U32(std::mem::take(buffer))),
                 Err(_) => {
-                    instance
-                        .caches
-                        .write_indices(&instance.regions, r, &mut scratch.indices);
                     warn_once!(
                         "a region mesh's data is no longer in the main world; its LOD is not updated"
                     );
