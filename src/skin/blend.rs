@@ -11,6 +11,8 @@ use glam::{Mat4, Vec3, Vec4};
 /// not positive (weights are sorted largest first). Joints without a matrix are skipped.
 /// Every placement in this module goes through this one function, so a vertex gets
 /// bit-for-bit the same result whichever entry point places it.
+// `!(w > 0.0)` on purpose: one comparison that is also true for NaN.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
 fn skin_matrix(
     matrices: &[Mat4],
@@ -18,7 +20,6 @@ fn skin_matrix(
     weights: [f32; MAX_INFLUENCES],
     rigid: bool,
 ) -> [Vec4; 4] {
-    // `!(w > 0.0)` is also true for NaN.
     if rigid || !(weights[1] > 0.0) {
         return match matrices.get(usize::from(joints[0])) {
             Some(m) => [m.x_axis, m.y_axis, m.z_axis, m.w_axis],
