@@ -300,6 +300,19 @@ impl SkinState {
         }
     }
 
+    /// Writes the index buffers of the regions whose cache changed, and the vertices they
+    /// refer to.
+    fn refresh_indices(&mut self, caches: &mut RegionCaches, regions: &RegionMesh) {
+        for (r, state) in self.regions.iter_mut().enumerate() {
+            if caches.is_dirty(r) {
+                caches.write_indices(regions, r, &mut state.indices);
+                state.indices_changed = true;
+                let rigid = matches!(self.binding.kinds[r], SkinRegionKind::Rigid { .. });
+                state.refresh_referenced(regions.regions()[r].own_vertices, rigid);
+            }
+        }
+    }
+
     /// Reads the joints' and the root's global transforms: skinning matrices, which joints
     /// moved, and every region's world box.
     pub(crate) fn update_matrices(
@@ -432,20 +445,29 @@ impl Job<'_> {
 }
 
 /// `Deform` for every skinned instance: refresh the index buffers of regions whose cache
-/// changed, then blend, in parallel over regions on the compute task pool, the vertices of
-/// each region whose joints moved or whose buffer changed. Returns the vertices blended.
-pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)]) -> usize {
+/// changed (in parallel over instances), then blend, in parallel over regions, the vertices
+/// of each region whose joints moved or whose buffer changed; both on the compute task pool.
+/// Returns the vertices blended.
+pub(crate) fn deform(
+    mut instances: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)],
+) -> usize {
+    let pool = ComputeTaskPool::get_or_init(TaskPool::default);
+    let refresh = |chunk: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)]| {
+        for (caches, regions, skin) in chunk {
+            skin.refresh_indices(caches, regions);
+        }
+    };
+    if instances.len() > 1 {
+        instances.par_splat_map_mut(pool, None, |_, chunk| refresh(chunk));
+    } else {
+        refresh(instances);
+    }
+
     let mut jobs: Vec<Job<'_>> = Vec::new();
-    for (caches, regions, skin) in instances.iter_mut() {
+    for (_, regions, skin) in instances.iter_mut() {
         let skin = &mut **skin;
         for (r, state) in skin.regions.iter_mut().enumerate() {
             let region = &regions.regions()[r];
-            let rigid = matches!(skin.binding.kinds[r], SkinRegionKind::Rigid { .. });
-            if caches.is_dirty(r) {
-                caches.write_indices(regions, r, &mut state.indices);
-                state.indices_changed = true;
-                state.refresh_referenced(region.own_vertices, rigid);
-            }
             let moved = skin.binding.region_joints[r]
                 .iter()
                 .any(|&j| skin.moved.get(j as usize).copied().unwrap_or(false));
@@ -475,7 +497,6 @@ pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut Skin
     }
     let blended: usize = jobs.iter().map(|j| j.region.referenced.len()).sum();
     if jobs.len() > 1 {
-        let pool = ComputeTaskPool::get_or_init(TaskPool::default);
         jobs.par_splat_map_mut(pool, None, |_, chunk| {
             for job in chunk {
                 job.run();
