@@ -96,8 +96,9 @@ struct Builder<'a> {
     live_triangles: usize,
     /// False when every position has one attribute vertex: no seams to respect.
     has_seams: bool,
-    /// True when some vertex is pinned: region fronts to respect.
-    has_pinned: bool,
+    /// Per position: a vertex that fronts are drawn along (another region's vertex); empty
+    /// when there is none, so no fronts to respect.
+    anchor: Vec<bool>,
     inv_diagonal: f64,
     scratch: Scratch,
     candidates: Vec<(f64, u32)>,
@@ -139,7 +140,12 @@ fn others(tri: [u32; 3], pos: &[u32], p: u32) -> Option<(usize, u32, u32)> {
 }
 
 impl<'a> Builder<'a> {
-    fn new(mesh: &'a IndexedMesh, options: &'a BuildOptions, pinned: Option<&[bool]>) -> Self {
+    fn new(
+        mesh: &'a IndexedMesh,
+        options: &'a BuildOptions,
+        pinned: Option<&[bool]>,
+        anchors: Option<&[bool]>,
+    ) -> Self {
         let weld = weld_positions(&mesh.positions);
         let n = mesh.positions.len();
         let points = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
@@ -163,7 +169,7 @@ impl<'a> Builder<'a> {
             alive: vec![true; tris.len()],
             live_triangles: tris.len(),
             has_seams: weld.unique < n,
-            has_pinned: pinned.is_some_and(|p| p.contains(&true)),
+            anchor: Vec::new(),
             tris,
             adj,
             kind: vec![Kind::Manifold; n],
@@ -181,6 +187,17 @@ impl<'a> Builder<'a> {
             candidates: Vec::new(),
         };
         builder.classify(pinned);
+        // Fronts run along the anchors: the vertices given, or else every pinned one.
+        if let Some(anchors) = anchors.or(pinned)
+            && anchors.contains(&true)
+        {
+            builder.anchor = vec![false; n];
+            for (v, &a) in anchors.iter().enumerate() {
+                if a {
+                    builder.anchor[builder.pos[v] as usize] = true;
+                }
+            }
+        }
         builder
     }
 
@@ -365,20 +382,26 @@ impl<'a> Builder<'a> {
             == 1
     }
 
-    /// True when a triangle around `u` (and `w`, when given) has a pinned corner.
+    /// True when a triangle around `u` (and `w`, when given) has an anchor corner (another
+    /// region's vertex).
     ///
-    /// A vertex next to pinned ones is on a region's front: it may only collapse along the
-    /// front, onto a vertex that shares such a triangle. The band of border triangles between
-    /// two regions then stays a strip between two polylines that each side decimates in
-    /// order, so no level of either side can fold it (a boundary collapses the same way).
-    fn touches_pinned(&self, u: u32, w: Option<u32>) -> bool {
+    /// A vertex next to an anchor is on a region's front. It may collapse along the front,
+    /// onto a vertex that shares such a triangle with it (the two are consecutive on the
+    /// front), or onto an inner vertex, which then takes its place on the front with the same
+    /// foreign neighbours; never onto a vertex elsewhere on a front. The band of border
+    /// triangles between two regions then stays a strip between two polylines that each side
+    /// decimates in order, so no level of either side can fold it (a boundary collapses the
+    /// same way). Vertices pinned for other reasons (junctions) are not anchors: a triangle
+    /// with a junction corner is not a border triangle, and counting it let a front vertex
+    /// step onto another stretch of the front (the two sides of the band then crossed).
+    fn touches_anchor(&self, u: u32, w: Option<u32>) -> bool {
         self.adj[u as usize].iter().any(|&t| {
             let tri = self.tris[t as usize];
             let has = |p: u32| tri.iter().any(|&v| self.pos[v as usize] == p);
             w.is_none_or(has)
                 && tri
                     .iter()
-                    .any(|&v| self.kind[self.pos[v as usize] as usize] == Kind::Pinned)
+                    .any(|&v| self.anchor[self.pos[v as usize] as usize])
         })
     }
 
@@ -533,11 +556,11 @@ impl<'a> Builder<'a> {
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
         let qu = self.quadrics[u as usize];
-        let front = self.has_pinned && self.touches_pinned(u, None);
+        let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
         for &w in &nu {
             if self.kind[w as usize] == Kind::Pinned
                 || (self.kind[u as usize] == Kind::Border && !self.is_border_edge(u, w))
-                || (front && !self.touches_pinned(u, Some(w)))
+                || (front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None))
             {
                 continue;
             }
@@ -746,11 +769,13 @@ pub(crate) struct Built {
 }
 
 /// Runs the whole build. `mesh` must be validated. Triangles from `owned` on are context
-/// (see [`Builder::finish`]).
+/// (see [`Builder::finish`]). Fronts run along `anchors` (another region's vertices), or
+/// along every pinned vertex when `None` (see [`Builder::touches_anchor`]).
 pub(crate) fn build(
     mesh: &IndexedMesh,
     options: &BuildOptions,
     pinned: Option<&[bool]>,
+    anchors: Option<&[bool]>,
     owned: usize,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Built, MeshError> {
@@ -765,7 +790,7 @@ pub(crate) fn build(
             ),
         ));
     }
-    let mut builder = Builder::new(mesh, options, pinned);
+    let mut builder = Builder::new(mesh, options, pinned, anchors);
     builder.run(progress);
     Ok(builder.finish(owned.min(mesh.triangle_count())))
 }

@@ -124,7 +124,7 @@ impl ProgressiveMesh {
             });
         }
         let owned = mesh.triangle_count();
-        Ok(build::build(&mesh, options, pinned, owned, progress)?.mesh)
+        Ok(build::build(&mesh, options, pinned, None, owned, progress)?.mesh)
     }
 
     /// The vertex table and the full-detail triangles (in slot order).
