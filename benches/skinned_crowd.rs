@@ -27,6 +27,32 @@ const BUDGET: u32 = 100_000;
 const WARMUP: usize = 20;
 const FRAMES: usize = 240;
 
+/// Bevy's task pools, or with `ASLOD_COMPUTE_THREADS=N` a compute pool of N threads. By default
+/// Bevy gives I/O and async compute a thread each, so on a 2-core machine the compute pool (where
+/// systems and the plugin's parallel loops run) has one.
+fn task_pools() -> TaskPoolPlugin {
+    let Some(threads) = std::env::var("ASLOD_COMPUTE_THREADS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    else {
+        return TaskPoolPlugin::default();
+    };
+    let mut options = TaskPoolOptions::default();
+    options.compute.min_threads = threads;
+    options.compute.max_threads = threads;
+    TaskPoolPlugin {
+        task_pool_options: options,
+    }
+}
+
+/// What `task_pools` made, for the table's title.
+fn compute_threads() -> String {
+    format!(
+        "compute pool {} threads",
+        bevy::tasks::ComputeTaskPool::get().thread_num()
+    )
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; under `cargo test` this is a short smoke run.
     let frames = if std::env::args().any(|a| a == "--bench") {
@@ -53,6 +79,7 @@ fn main() {
                 exit_condition: ExitCondition::DontExit,
                 ..default()
             })
+            .set(task_pools())
             .disable::<WinitPlugin>(),
         ScheduleRunnerPlugin::run_once(),
     ))
@@ -165,12 +192,13 @@ fn main() {
         ));
     }
     println!(
-        "{COUNT} RobotExpressive instances, P = {BUDGET}, {frames} frames ({} build)",
+        "{COUNT} RobotExpressive instances, P = {BUDGET}, {frames} frames ({} build, {})",
         if cfg!(debug_assertions) {
             "debug"
         } else {
             "optimised"
-        }
+        },
+        compute_threads()
     );
     println!(
         "| bones | Deform ms (median) | Upload ms (median) | Deform + Upload ms (median) | p95 | vertices blended / frame | triangles |"

@@ -221,9 +221,14 @@ pub(crate) struct RegionSkin {
     pub(crate) referenced: Vec<u32>,
     /// Local vertices written this frame (a subset of `referenced`).
     pub(crate) written: Vec<u32>,
-    /// Deformed positions and normals, in the region entity's space.
-    pub(crate) positions: Vec<Vec3>,
-    pub(crate) normals: Vec<Vec3>,
+    /// Deformed positions and normals in the region entity's space, as the mesh attributes
+    /// they become: `Upload` swaps them with the mesh's (double buffering). Every referenced
+    /// vertex is written each time the region is blended, and a rigid region's own vertices
+    /// never change, so whichever buffer is in the mesh is current where it is drawn.
+    pub(crate) positions: Vec<[f32; 3]>,
+    pub(crate) normals: Vec<[f32; 3]>,
+    /// Whether the source has normals (otherwise `normals` is not blended nor uploaded).
+    pub(crate) has_normals: bool,
     /// `stamp[v] == generation` marks `v` as referenced.
     stamp: Vec<u32>,
     generation: u32,
@@ -274,15 +279,18 @@ pub(crate) struct SkinState {
 impl SkinState {
     pub(crate) fn new(binding: Arc<SkinBinding>, regions: &RegionMesh) -> Self {
         let joints = binding.joint_count();
-        let region_state = regions
-            .regions()
-            .iter()
-            .map(|region| {
-                let n = region.global_vertices().len();
-                let mesh = region.progressive_mesh().mesh();
+        // Both buffers start as the region mesh does (rigid regions in their bone's space).
+        let region_state = (0..regions.regions().len())
+            .map(|r| {
+                let mesh = initial_region_mesh(&binding, regions, r);
+                let n = mesh.positions.len();
                 RegionSkin {
-                    positions: mesh.positions.clone(),
-                    normals: mesh.normals.clone().unwrap_or_else(|| vec![Vec3::Y; n]),
+                    positions: mesh.positions.iter().map(|p| p.to_array()).collect(),
+                    normals: mesh.normals.as_ref().map_or_else(
+                        || vec![[0.0, 1.0, 0.0]; n],
+                        |normals| normals.iter().map(|n| n.to_array()).collect(),
+                    ),
+                    has_normals: mesh.normals.is_some(),
                     stamp: vec![0; n],
                     ..default()
                 }
@@ -422,14 +430,16 @@ impl Job<'_> {
         let r = &mut *self.region;
         r.written.clear();
         r.written.extend_from_slice(&r.referenced);
+        let positions: &mut [Vec3] = bytemuck::cast_slice_mut(&mut r.positions);
+        let normals: &mut [Vec3] = bytemuck::cast_slice_mut(&mut r.normals);
         blend(
             self.matrices,
             &self.source.positions,
             self.source.normals.as_deref(),
             self.influences,
             &r.written,
-            &mut r.positions,
-            Some(&mut r.normals),
+            positions,
+            Some(&mut *normals),
         );
         if let Some(to_local) = self.to_local {
             // Normals stay unnormalised, as `blend` leaves them: Bevy's vertex shader
@@ -437,8 +447,10 @@ impl Job<'_> {
             let normal_matrix = Mat3::from(to_local.matrix3).inverse().transpose();
             for &v in &r.written {
                 let v = v as usize;
-                r.positions[v] = to_local.transform_point3(r.positions[v]);
-                r.normals[v] = normal_matrix * r.normals[v];
+                if let (Some(p), Some(n)) = (positions.get_mut(v), normals.get_mut(v)) {
+                    *p = to_local.transform_point3(*p);
+                    *n = normal_matrix * *n;
+                }
             }
         }
     }

@@ -555,26 +555,22 @@ fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) ->
                 changed += 1;
             }
             if !state.written.is_empty() {
-                if let Ok(Some(VertexAttributeValues::Float32x3(positions))) =
-                    mesh.try_attribute_mut_option(Mesh::ATTRIBUTE_POSITION)
-                {
-                    for &v in &state.written {
-                        if let (Some(slot), Some(p)) = (
-                            positions.get_mut(v as usize),
-                            state.positions.get(v as usize),
-                        ) {
-                            *slot = p.to_array();
-                        }
-                    }
-                }
-                if let Ok(Some(VertexAttributeValues::Float32x3(normals))) =
-                    mesh.try_attribute_mut_option(Mesh::ATTRIBUTE_NORMAL)
-                {
-                    for &v in &state.written {
-                        if let (Some(slot), Some(n)) =
-                            (normals.get_mut(v as usize), state.normals.get(v as usize))
-                        {
-                            *slot = n.to_array();
+                // Swap the buffers (see `RegionSkin::positions`): no copy.
+                let normals = state.has_normals.then_some(&mut state.normals);
+                for (attribute, values) in [
+                    (Mesh::ATTRIBUTE_POSITION, Some(&mut state.positions)),
+                    (Mesh::ATTRIBUTE_NORMAL, normals),
+                ] {
+                    let Some(values) = values else { continue };
+                    if let Ok(Some(VertexAttributeValues::Float32x3(slots))) =
+                        mesh.try_attribute_mut_option(attribute)
+                    {
+                        if slots.len() == values.len() {
+                            std::mem::swap(slots, values);
+                        } else {
+                            warn_once!(
+                                "a skinned region mesh has the wrong vertex count; not updated"
+                            );
                         }
                     }
                 }

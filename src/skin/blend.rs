@@ -20,29 +20,39 @@ fn skin_matrix(
     weights: [f32; MAX_INFLUENCES],
     rigid: bool,
 ) -> [Vec4; 4] {
+    let matrix = |k: usize| {
+        let m = matrices.get(usize::from(joints[k]));
+        debug_assert!(m.is_some(), "joint {} has no matrix", joints[k]);
+        m
+    };
     if rigid || !(weights[1] > 0.0) {
-        return match matrices.get(usize::from(joints[0])) {
+        return match matrix(0) {
             Some(m) => [m.x_axis, m.y_axis, m.z_axis, m.w_axis],
-            None => {
-                debug_assert!(false, "joint {} has no matrix", joints[0]);
-                [Vec4::ZERO; 4]
-            }
+            None => [Vec4::ZERO; 4],
         };
     }
-    let mut c = [Vec4::ZERO; 4];
-    for k in 0..MAX_INFLUENCES {
+    // Two influences or more, unrolled: most skinned vertices have two.
+    let (Some(a), Some(b)) = (matrix(0), matrix(1)) else {
+        return [Vec4::ZERO; 4];
+    };
+    let (w0, w1) = (weights[0], weights[1]);
+    let mut c = [
+        a.x_axis * w0 + b.x_axis * w1,
+        a.y_axis * w0 + b.y_axis * w1,
+        a.z_axis * w0 + b.z_axis * w1,
+        a.w_axis * w0 + b.w_axis * w1,
+    ];
+    for k in 2..MAX_INFLUENCES {
         let w = weights[k];
         if !(w > 0.0) {
             break;
         }
-        let Some(m) = matrices.get(usize::from(joints[k])) else {
-            debug_assert!(false, "joint {} has no matrix", joints[k]);
-            continue;
-        };
-        c[0] += m.x_axis * w;
-        c[1] += m.y_axis * w;
-        c[2] += m.z_axis * w;
-        c[3] += m.w_axis * w;
+        if let Some(m) = matrix(k) {
+            c[0] += m.x_axis * w;
+            c[1] += m.y_axis * w;
+            c[2] += m.z_axis * w;
+            c[3] += m.w_axis * w;
+        }
     }
     c
 }
