@@ -42,12 +42,13 @@ fn skin_matrix(
         a.z_axis * w0 + b.z_axis * w1,
         a.w_axis * w0 + b.w_axis * w1,
     ];
-    for k in 2..MAX_INFLUENCES {
-        let w = weights[k];
+    for (&joint, &w) in joints.iter().zip(&weights).skip(2) {
         if !(w > 0.0) {
             break;
         }
-        if let Some(m) = matrix(k) {
+        let m = matrices.get(usize::from(joint));
+        debug_assert!(m.is_some(), "joint {joint} has no matrix");
+        if let Some(m) = m {
             c[0] += m.x_axis * w;
             c[1] += m.y_axis * w;
             c[2] += m.z_axis * w;
