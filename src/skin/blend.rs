@@ -42,20 +42,26 @@ fn skin_matrix(
         a.z_axis * w0 + b.z_axis * w1,
         a.w_axis * w0 + b.w_axis * w1,
     ];
-    for (&joint, &w) in joints.iter().zip(&weights).skip(2) {
-        if !(w > 0.0) {
-            break;
-        }
-        let m = matrices.get(usize::from(joint));
-        debug_assert!(m.is_some(), "joint {joint} has no matrix");
-        if let Some(m) = m {
-            c[0] += m.x_axis * w;
-            c[1] += m.y_axis * w;
-            c[2] += m.z_axis * w;
-            c[3] += m.w_axis * w;
+    // A third and a fourth influence, when the vertex has them (weights sorted largest
+    // first, so a zero ends the list).
+    if weights[2] > 0.0 {
+        accumulate(&mut c, matrix(2), weights[2]);
+        if weights[3] > 0.0 {
+            accumulate(&mut c, matrix(3), weights[3]);
         }
     }
     c
+}
+
+/// `c += w m`, for a joint that has a matrix.
+#[inline(always)]
+fn accumulate(c: &mut [Vec4; 4], m: Option<&Mat4>, w: f32) {
+    if let Some(m) = m {
+        c[0] += m.x_axis * w;
+        c[1] += m.y_axis * w;
+        c[2] += m.z_axis * w;
+        c[3] += m.w_axis * w;
+    }
 }
 
 #[inline(always)]
