@@ -204,47 +204,47 @@ fn blend_impl(
     out_positions: &mut [Vec3],
     out_normals: Option<&mut [Vec3]>,
 ) {
-    let joints = influences.joints.as_slice();
-    let weights = influences.weights.as_slice();
+    // Every array cut to one common length `n`: one `i < n` test per vertex then covers
+    // every access (the optimiser drops the others).
+    let mut n = positions
+        .len()
+        .min(influences.joints.len())
+        .min(influences.weights.len())
+        .min(out_positions.len());
+    let out_normals = match (normals, out_normals) {
+        (Some(normals), Some(out)) => {
+            n = n.min(normals.len()).min(out.len());
+            Some((&normals[..n], &mut out[..n]))
+        }
+        _ => None,
+    };
+    let positions = &positions[..n];
+    let joints = &influences.joints[..n];
+    let weights = &influences.weights[..n];
+    let out_positions = &mut out_positions[..n];
     let is_rigid = |i: usize| rigid.is_some_and(|r| r.get(i).copied().unwrap_or(false));
-    match (normals, out_normals) {
-        (Some(normals), Some(out_normals)) => {
+    match out_normals {
+        Some((normals, out_normals)) => {
             for &i in vertices {
                 let i = i as usize;
-                let (Some(&p), Some(&n), Some(&j), Some(&w)) = (
-                    positions.get(i),
-                    normals.get(i),
-                    joints.get(i),
-                    weights.get(i),
-                ) else {
+                if i >= n {
                     debug_assert!(false, "vertex {i} is out of range");
                     continue;
-                };
-                let c = skin_matrix(matrices, j, w, is_rigid(i));
-                match (out_positions.get_mut(i), out_normals.get_mut(i)) {
-                    (Some(op), Some(on)) => {
-                        *op = apply_point(&c, p);
-                        *on = apply_normal(&c, n);
-                    }
-                    _ => debug_assert!(false, "vertex {i} is out of the output range"),
                 }
+                let c = skin_matrix(matrices, joints[i], weights[i], is_rigid(i));
+                out_positions[i] = apply_point(&c, positions[i]);
+                out_normals[i] = apply_normal(&c, normals[i]);
             }
         }
-        _ => {
+        None => {
             for &i in vertices {
                 let i = i as usize;
-                let (Some(&p), Some(&j), Some(&w)) =
-                    (positions.get(i), joints.get(i), weights.get(i))
-                else {
+                if i >= n {
                     debug_assert!(false, "vertex {i} is out of range");
                     continue;
-                };
-                let c = skin_matrix(matrices, j, w, is_rigid(i));
-                if let Some(op) = out_positions.get_mut(i) {
-                    *op = apply_point(&c, p);
-                } else {
-                    debug_assert!(false, "vertex {i} is out of the output range");
                 }
+                let c = skin_matrix(matrices, joints[i], weights[i], is_rigid(i));
+                out_positions[i] = apply_point(&c, positions[i]);
             }
         }
     }
