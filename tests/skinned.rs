@@ -380,3 +380,68 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
         }
     }
 }
+
+#[test]
+fn a_scene_shows_its_source_meshes_until_its_assets_are_built() {
+    let mut app = app(20_000, ASSETS);
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset(MANNEQUIN));
+    let root = app
+        .world_mut()
+        .spawn((
+            WorldAssetRoot(scene),
+            MultiresScene::default(),
+            Transform::default(),
+        ))
+        .id();
+    // The scene's skinned mesh entities, found once the scene has spawned.
+    let mut skinned: Vec<Entity> = Vec::new();
+    let mut frames_waiting = 0;
+    for _ in 0..3_000 {
+        app.update();
+        if skinned.is_empty() {
+            let mut q = app
+                .world_mut()
+                .query_filtered::<Entity, With<SkinnedMesh>>();
+            skinned = q.iter(app.world()).collect();
+        }
+        let converted = app.world().get::<MultiresSceneModels>(root).is_some();
+        if converted {
+            break;
+        }
+        // Spawned but not converted yet: the source meshes are still there to be drawn.
+        for &e in &skinned {
+            assert!(
+                app.world().get::<Mesh3d>(e).is_some(),
+                "entity {e} lost its mesh before its multiresolution asset was ready"
+            );
+        }
+        frames_waiting += usize::from(!skinned.is_empty());
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let models = app
+        .world()
+        .get::<MultiresSceneModels>(root)
+        .expect("the mannequin was converted");
+    assert!(!models.skinned.is_empty());
+    assert!(!skinned.is_empty(), "the scene has skinned meshes");
+    for &e in &skinned {
+        let world = app.world();
+        assert!(
+            world.get::<Mesh3d>(e).is_none(),
+            "{e}: replaced by its model"
+        );
+        assert!(
+            world.get::<MultiresSourceMesh>(e).is_some(),
+            "{e}: source kept"
+        );
+    }
+    // The build is polled from the frame after it starts, at the earliest.
+    assert!(
+        frames_waiting >= 1,
+        "frames ran while the assets were built"
+    );
+    println!("frames with the source meshes shown while building: {frames_waiting}");
+}
