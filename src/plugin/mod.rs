@@ -68,7 +68,7 @@ use std::sync::Arc;
 ///
 /// | set | runs | does |
 /// |---|---|---|
-/// | [`AslodSystems::Spawn`] | before [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate) | gives new [`MultiresModel`]s their region children; rebuilds them when their asset is modified (hot reload) |
+/// | [`AslodSystems::Spawn`] | before [`TransformSystems::Propagate`] | gives new [`MultiresModel`]s their region children; rebuilds them when their asset is modified (hot reload) |
 /// | [`AslodSystems::Allocate`] | after propagation | projected area of every region's world box, budget split |
 /// | [`AslodSystems::SelectLod`] | after `Allocate` | moves each region's polygon cache to its count |
 /// | [`AslodSystems::Deform`] | after `SelectLod` | blends the cached vertices of skinned regions whose joints moved or whose cache changed |
@@ -142,9 +142,9 @@ impl Plugin for AslodPlugin {
 /// The plugin's system sets, in [`PostUpdate`], in this order.
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum AslodSystems {
-    /// Spawns region children for new models. Before [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate).
+    /// Spawns region children for new models. Before [`TransformSystems::Propagate`].
     Spawn,
-    /// Splits the budget among all regions in view. After [`TransformSystems::Propagate`](bevy::transform::TransformSystems::Propagate)
+    /// Splits the budget among all regions in view. After [`TransformSystems::Propagate`]
     /// (needs world transforms) and camera updates.
     Allocate,
     /// Moves each region's polygon cache to its allocated count. After `Allocate`.
