@@ -56,6 +56,8 @@ bench:
 bench-bevy: deps
 	$(CARGO) bench --bench plugin --bench skinned_crowd
 
+# The command-line tool without Bevy: a release Bevy build would take long.
 compare:
 	@for m in stanford-bunny cow fandisk spot; do \
-		$(CARGO) run --release --quiet --bin aslod -- compare $(TESTDATA)/meshes/$$m.obj; done
+		$(CARGO) run --release --quiet --no-default-features --features cli --bin aslod -- \
+			compare $(TESTDATA)/meshes/$$m.obj --regions clusters:16; done
