@@ -27,6 +27,9 @@ pub enum MultiresError {
     /// A skinned build was asked of a mesh without joints or weights.
     #[error("the mesh has no joints or weights (JOINTS_0/WEIGHTS_0): it is not skinned")]
     NotSkinned,
+    /// Building the asset panicked (a bug in this crate; please report it with the mesh).
+    #[error("building the multiresolution mesh panicked")]
+    BuildPanicked,
     /// An inverse bind matrix has a NaN or infinite entry.
     #[error("inverse bind matrix {joint} is not finite")]
     NonFiniteBindpose {
@@ -36,7 +39,7 @@ pub enum MultiresError {
 }
 
 /// How to cut a mesh into regions for [`MultiresMesh::from_bevy_mesh`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PartitionSpec {
     /// One region: the whole mesh changes detail as one.
     Single,

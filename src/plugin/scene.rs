@@ -73,9 +73,18 @@ pub struct MultiresSourceMesh(pub Handle<Mesh>);
 /// Built assets by source mesh (and skin), shared by every scene instance.
 #[derive(Resource, Default)]
 pub(crate) struct SceneAssetCache {
-    built: HashMap<(AssetId<Mesh>, Option<AssetId<SkinnedMeshInverseBindposes>>), Built>,
+    built: HashMap<BuildKey, Built>,
     warned_morph: bool,
 }
+
+/// What an asset is built from: the mesh, its skin, and the scene's options (δ's bits and the
+/// static partition), so scenes with different options do not share an asset.
+type BuildKey = (
+    AssetId<Mesh>,
+    Option<AssetId<SkinnedMeshInverseBindposes>>,
+    u32,
+    PartitionSpec,
+);
 
 enum Built {
     /// Building on the async compute pool.
@@ -188,7 +197,12 @@ pub(crate) fn convert_scenes(
             if mesh.has_morph_targets() {
                 continue;
             }
-            let key = (mesh3d.0.id(), skin.map(|s| s.inverse_bindposes.id()));
+            let key = (
+                mesh3d.0.id(),
+                skin.map(|s| s.inverse_bindposes.id()),
+                options.rigid_delta.to_bits(),
+                options.static_partition,
+            );
             let built = cache.built.entry(key).or_insert_with(|| {
                 // The conversion copies the mesh here; the build runs on the pool.
                 let indexed = from_bevy_mesh(mesh);
@@ -199,10 +213,16 @@ pub(crate) fn convert_scenes(
                         .unwrap_or_default()
                 });
                 let (delta, partition) = (options.rigid_delta, options.static_partition);
-                Built::Pending(
-                    AsyncComputeTaskPool::get_or_init(TaskPool::default)
-                        .spawn(async move { build(indexed, ib, delta, partition) }),
-                )
+                Built::Pending(AsyncComputeTaskPool::get_or_init(TaskPool::default).spawn(
+                    async move {
+                        // A panic in the build (a bug) leaves the mesh conventional instead
+                        // of taking the app down.
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                            build(indexed, ib, delta, partition)
+                        }))
+                        .unwrap_or(Err(super::MultiresError::BuildPanicked))
+                    },
+                ))
             });
             pending |= matches!(built, Built::Pending(_));
         }
@@ -228,7 +248,12 @@ pub(crate) fn convert_scenes(
                 result.fixed.push(entity);
                 continue;
             }
-            let key = (mesh3d.0.id(), skin.map(|s| s.inverse_bindposes.id()));
+            let key = (
+                mesh3d.0.id(),
+                skin.map(|s| s.inverse_bindposes.id()),
+                options.rigid_delta.to_bits(),
+                options.static_partition,
+            );
             let built = match cache.built.get(&key) {
                 Some(Built::Ok(handle, more)) => Some((handle.clone(), *more)),
                 _ => None,

@@ -447,8 +447,12 @@ impl Job<'_> {
             let normal_matrix = Mat3::from(to_local.matrix3).inverse().transpose();
             for &v in &r.written {
                 let v = v as usize;
-                if let (Some(p), Some(n)) = (positions.get_mut(v), normals.get_mut(v)) {
+                if let Some(p) = positions.get_mut(v) {
                     *p = to_local.transform_point3(*p);
+                }
+                if r.has_normals
+                    && let Some(n) = normals.get_mut(v)
+                {
                     *n = normal_matrix * *n;
                 }
             }

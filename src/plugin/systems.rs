@@ -197,7 +197,7 @@ fn propagate_materials(
     for (instance, material) in &changed {
         for &region in &instance.region_entities {
             if let Ok(mut region) = commands.get_entity(region) {
-                region.insert(material.clone());
+                region.try_insert(material.clone());
             }
         }
     }
@@ -208,7 +208,7 @@ fn propagate_materials(
         };
         for &region in &instance.region_entities {
             if let Ok(mut region) = commands.get_entity(region) {
-                region.remove::<MeshMaterial3d<StandardMaterial>>();
+                region.try_remove::<MeshMaterial3d<StandardMaterial>>();
             }
         }
     }

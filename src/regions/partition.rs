@@ -5,7 +5,7 @@ use crate::mesh::{IndexedMesh, weld_positions};
 use glam::Vec3;
 
 /// The plane a [`Partition::grid`] is laid over.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum GridPlane {
     /// The ground plane (Y up): terrain.
     #[default]

@@ -31,17 +31,23 @@ fn skin_matrix(
             None => [Vec4::ZERO; 4],
         };
     }
-    // Two influences or more, unrolled: most skinned vertices have two.
-    let (Some(a), Some(b)) = (matrix(0), matrix(1)) else {
-        return [Vec4::ZERO; 4];
-    };
+    // Two influences or more, unrolled: most skinned vertices have two. A joint without a
+    // matrix is skipped, as in `accumulate`.
     let (w0, w1) = (weights[0], weights[1]);
-    let mut c = [
-        a.x_axis * w0 + b.x_axis * w1,
-        a.y_axis * w0 + b.y_axis * w1,
-        a.z_axis * w0 + b.z_axis * w1,
-        a.w_axis * w0 + b.w_axis * w1,
-    ];
+    let mut c = match (matrix(0), matrix(1)) {
+        (Some(a), Some(b)) => [
+            a.x_axis * w0 + b.x_axis * w1,
+            a.y_axis * w0 + b.y_axis * w1,
+            a.z_axis * w0 + b.z_axis * w1,
+            a.w_axis * w0 + b.w_axis * w1,
+        ],
+        (a, b) => {
+            let mut c = [Vec4::ZERO; 4];
+            accumulate(&mut c, a, w0);
+            accumulate(&mut c, b, w1);
+            c
+        }
+    };
     // A third and a fourth influence, when the vertex has them (weights sorted largest
     // first, so a zero ends the list).
     if weights[2] > 0.0 {
@@ -206,15 +212,20 @@ fn blend_impl(
 ) {
     // Every array cut to one common length `n`: one `i < n` test per vertex then covers
     // every access (the optimiser drops the others).
-    let mut n = positions
+    let n = positions
         .len()
         .min(influences.joints.len())
         .min(influences.weights.len())
         .min(out_positions.len());
+    // Normals only when both arrays cover every vertex the positions do; otherwise the
+    // positions are still written and the normals left alone.
     let out_normals = match (normals, out_normals) {
-        (Some(normals), Some(out)) => {
-            n = n.min(normals.len()).min(out.len());
+        (Some(normals), Some(out)) if normals.len() >= n && out.len() >= n => {
             Some((&normals[..n], &mut out[..n]))
+        }
+        (Some(_), Some(_)) => {
+            debug_assert!(false, "normal arrays shorter than the positions");
+            None
         }
         _ => None,
     };
