@@ -249,6 +249,30 @@ fn moving_the_camera_closer_gives_more_triangles() {
 }
 
 #[test]
+fn models_out_of_view_stay_coarse_and_those_in_view_get_the_budget() {
+    let mut app = app(100_000);
+    let handle = add_asset(&mut app);
+    // The camera at z = 40 looks at the origin (towards -z).
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 40.0));
+    let seen = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let behind = spawn_model(&mut app, &handle, Vec3::new(0.0, 0.0, 80.0));
+    let beside = spawn_model(&mut app, &handle, Vec3::new(400.0, 0.0, 0.0));
+    app.update();
+    let coarsest = app
+        .world()
+        .resource::<Assets<MultiresMesh>>()
+        .get(&handle)
+        .unwrap()
+        .min_triangles();
+    assert!(
+        triangles(&mut app, seen) > coarsest,
+        "the model in view gets detail"
+    );
+    assert_eq!(triangles(&mut app, behind), coarsest, "behind the camera");
+    assert_eq!(triangles(&mut app, beside), coarsest, "far off to the side");
+}
+
+#[test]
 fn models_off_the_view_axis_are_seen() {
     // Before `camera_system` runs, `Camera::clip_from_view` is the identity; the projection
     // must be used instead, or only models on the view axis would count.

@@ -250,6 +250,9 @@ pub struct CountInBudget;
 pub struct MultiresInstance {
     regions: Arc<RegionMesh>,
     obbs: Arc<[Obb]>,
+    /// A box around every region's box, in the model's space: a model whose box is out of
+    /// every view skips its regions' projections (unskinned models only).
+    bounds: Obb,
     caches: RegionCaches,
     targets: Vec<u32>,
     meshes: Vec<Handle<Mesh>>,

@@ -6,7 +6,7 @@ use super::{
     MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
-use crate::budget::{Allocator, ProjectedAreaCamera, RegionInput};
+use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
 use bevy::camera::visibility::NoFrustumCulling;
@@ -167,8 +167,21 @@ fn spawn_regions(
             .iter()
             .map(|r| r.min_triangles() as u32)
             .collect();
+        let (lo, hi) = asset
+            .obbs()
+            .iter()
+            .flat_map(Obb::corners)
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p), hi.max(p))
+            });
+        let bounds = if lo.cmple(hi).all() {
+            Obb::from_aabb(lo, hi)
+        } else {
+            Obb::from_aabb(Vec3::ZERO, Vec3::ZERO)
+        };
         commands.entity(entity).insert(MultiresInstance {
             caches: RegionCaches::new(&regions),
+            bounds,
             obbs: asset.obbs().clone(),
             regions,
             targets,
@@ -432,8 +445,14 @@ fn region_inputs(
         .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
     let affine = transform.affine();
     let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
+    // Every region box lies inside the model's box: when that one projects to nothing in
+    // every view, so do they (skinned regions move with their bones, so not for them).
+    let culled = !full_detail && skinned.is_none() && !cameras.is_empty() && {
+        let bounds = instance.bounds.transformed(&affine);
+        cameras.iter().all(|cam| cam.projected_area(&bounds) <= 0.0)
+    };
     for ((r, region), input) in instance.regions.regions().iter().enumerate().zip(out) {
-        let area = if full_detail {
+        let area = if full_detail || culled {
             0.0
         } else {
             let obb = match skinned.and_then(|boxes| boxes.get(r)) {
