@@ -3,6 +3,8 @@
 //!
 //! `cargo bench --bench plugin`
 
+mod common;
+
 use bevy::prelude::*;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{AslodPlugin, AslodStats, AslodViewport, MultiresMesh, MultiresModel};
@@ -39,32 +41,6 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
-/// Bevy's task pools, or with `ASLOD_COMPUTE_THREADS=N` a compute pool of N threads. By default
-/// Bevy gives I/O and async compute a thread each, so on a 2-core machine the compute pool (where
-/// systems and the plugin's parallel loops run) has one.
-fn task_pools() -> TaskPoolPlugin {
-    let Some(threads) = std::env::var("ASLOD_COMPUTE_THREADS")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-    else {
-        return TaskPoolPlugin::default();
-    };
-    let mut options = TaskPoolOptions::default();
-    options.compute.min_threads = threads;
-    options.compute.max_threads = threads;
-    TaskPoolPlugin {
-        task_pool_options: options,
-    }
-}
-
-/// What `task_pools` made, for the table's title.
-fn compute_threads() -> String {
-    format!(
-        "compute pool {} threads",
-        bevy::tasks::ComputeTaskPool::get().thread_num()
-    )
-}
-
 fn main() {
     // ε = 0 follows every target; ε = 8 lets regions keep their level through small changes.
     for hysteresis in [0, 8] {
@@ -82,7 +58,7 @@ fn run(hysteresis: u32) {
 
     let mut app = App::new();
     app.add_plugins((
-        MinimalPlugins.set(task_pools()),
+        MinimalPlugins.set(common::task_pools()),
         AssetPlugin::default(),
         TransformPlugin,
     ))
@@ -166,7 +142,7 @@ fn run(hysteresis: u32) {
     println!(
         "bevy_aslod plugin: {MODELS} models x {regions} regions = {} region instances, P = {BUDGET}, hysteresis {hysteresis}, {FRAMES} frames, {}",
         MODELS * regions,
-        compute_threads()
+        common::compute_threads()
     );
     println!("| step | median ms | p90 ms | max ms |");
     println!("|---|---:|---:|---:|");

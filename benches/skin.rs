@@ -38,6 +38,28 @@ struct Input {
     vertices: Vec<u32>,
 }
 
+impl Input {
+    /// `blend` of `vertices`, with normals when `out_n` is given.
+    fn blend(
+        &self,
+        influences: &Influences,
+        vertices: &[u32],
+        out_p: &mut [Vec3],
+        out_n: Option<&mut [Vec3]>,
+    ) {
+        let normals = out_n.is_some().then_some(self.normals.as_slice());
+        blend(
+            &self.matrices,
+            &self.positions,
+            normals,
+            influences,
+            vertices,
+            out_p,
+            out_n,
+        );
+    }
+}
+
 fn input(rng: &mut Rng) -> Input {
     let matrices = (0..JOINTS)
         .map(|_| {
@@ -89,10 +111,7 @@ fn blend_100k(c: &mut Criterion) {
         let inf = influences(&mut rng, count);
         group.bench_function(BenchmarkId::new("positions_normals", count), |b| {
             b.iter(|| {
-                blend(
-                    &input.matrices,
-                    &input.positions,
-                    Some(&input.normals),
+                input.blend(
                     black_box(&inf),
                     &input.vertices,
                     &mut out_p,
@@ -103,15 +122,7 @@ fn blend_100k(c: &mut Criterion) {
         });
         group.bench_function(BenchmarkId::new("positions", count), |b| {
             b.iter(|| {
-                blend(
-                    &input.matrices,
-                    &input.positions,
-                    None,
-                    black_box(&inf),
-                    &input.vertices,
-                    &mut out_p,
-                    None,
-                );
+                input.blend(black_box(&inf), &input.vertices, &mut out_p, None);
                 black_box(out_p[VERTICES / 2])
             })
         });
@@ -141,15 +152,7 @@ fn blend_100k(c: &mut Criterion) {
     group.throughput(Throughput::Elements(subset.len() as u64));
     group.bench_function("positions_normals_4", |b| {
         b.iter(|| {
-            blend(
-                &input.matrices,
-                &input.positions,
-                Some(&input.normals),
-                black_box(&inf),
-                &subset,
-                &mut out_p,
-                Some(&mut out_n),
-            );
+            input.blend(black_box(&inf), &subset, &mut out_p, Some(&mut out_n));
             black_box(out_p[3])
         })
     });
@@ -166,15 +169,7 @@ fn blend_100k(c: &mut Criterion) {
         let inf = influences(&mut rng, count);
         group.bench_function(BenchmarkId::new("positions_normals", count), |b| {
             b.iter(|| {
-                blend(
-                    &input.matrices,
-                    &input.positions,
-                    Some(&input.normals),
-                    black_box(&inf),
-                    &region,
-                    &mut out_p,
-                    Some(&mut out_n),
-                );
+                input.blend(black_box(&inf), &region, &mut out_p, Some(&mut out_n));
                 black_box(out_p[REGION / 2])
             })
         });

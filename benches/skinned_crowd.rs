@@ -6,6 +6,8 @@
 //!
 //! `cargo bench --bench skinned_crowd`
 
+mod common;
+
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::gltf::Gltf;
 use bevy::prelude::*;
@@ -26,32 +28,6 @@ const COUNT: usize = 100;
 const BUDGET: u32 = 100_000;
 const WARMUP: usize = 20;
 const FRAMES: usize = 240;
-
-/// Bevy's task pools, or with `ASLOD_COMPUTE_THREADS=N` a compute pool of N threads. By default
-/// Bevy gives I/O and async compute a thread each, so on a 2-core machine the compute pool (where
-/// systems and the plugin's parallel loops run) has one.
-fn task_pools() -> TaskPoolPlugin {
-    let Some(threads) = std::env::var("ASLOD_COMPUTE_THREADS")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-    else {
-        return TaskPoolPlugin::default();
-    };
-    let mut options = TaskPoolOptions::default();
-    options.compute.min_threads = threads;
-    options.compute.max_threads = threads;
-    TaskPoolPlugin {
-        task_pool_options: options,
-    }
-}
-
-/// What `task_pools` made, for the table's title.
-fn compute_threads() -> String {
-    format!(
-        "compute pool {} threads",
-        bevy::tasks::ComputeTaskPool::get().thread_num()
-    )
-}
 
 fn main() {
     // `cargo bench` passes `--bench`; under `cargo test` this is a short smoke run.
@@ -79,7 +55,7 @@ fn main() {
                 exit_condition: ExitCondition::DontExit,
                 ..default()
             })
-            .set(task_pools())
+            .set(common::task_pools())
             .disable::<WinitPlugin>(),
         ScheduleRunnerPlugin::run_once(),
     ))
@@ -198,7 +174,7 @@ fn main() {
         } else {
             "optimised"
         },
-        compute_threads()
+        common::compute_threads()
     );
     println!(
         "| bones | Deform ms (median) | Upload ms (median) | Deform + Upload ms (median) | p95 | vertices blended / frame | triangles |"

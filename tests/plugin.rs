@@ -89,6 +89,15 @@ fn triangles(app: &mut App, model: Entity) -> usize {
         .triangle_count()
 }
 
+/// The asset's coarsest total: every region at its base.
+fn coarsest(app: &App, handle: &Handle<MultiresMesh>) -> usize {
+    app.world()
+        .resource::<Assets<MultiresMesh>>()
+        .get(handle)
+        .expect("asset")
+        .min_triangles()
+}
+
 fn stats(app: &App) -> AslodStats {
     *app.world().resource::<AslodStats>()
 }
@@ -258,12 +267,7 @@ fn models_out_of_view_stay_coarse_and_those_in_view_get_the_budget() {
     let behind = spawn_model(&mut app, &handle, Vec3::new(0.0, 0.0, 80.0));
     let beside = spawn_model(&mut app, &handle, Vec3::new(400.0, 0.0, 0.0));
     app.update();
-    let coarsest = app
-        .world()
-        .resource::<Assets<MultiresMesh>>()
-        .get(&handle)
-        .unwrap()
-        .min_triangles();
+    let coarsest = coarsest(&app, &handle);
     assert!(
         triangles(&mut app, seen) > coarsest,
         "the model in view gets detail"
@@ -281,12 +285,7 @@ fn models_off_the_view_axis_are_seen() {
     spawn_camera(&mut app, Vec3::new(0.0, 10.0, 40.0));
     let side = spawn_model(&mut app, &handle, Vec3::new(18.0, 0.0, 0.0));
     app.update();
-    let coarsest = app
-        .world()
-        .resource::<Assets<MultiresMesh>>()
-        .get(&handle)
-        .unwrap()
-        .min_triangles();
+    let coarsest = coarsest(&app, &handle);
     assert!(
         triangles(&mut app, side) > coarsest,
         "a visible model off the axis gets detail"
@@ -391,12 +390,7 @@ fn without_a_camera_nothing_is_allocated_and_models_stay_coarse() {
     let model = spawn_model(&mut app, &handle, Vec3::ZERO);
     app.update();
     assert!(!stats(&app).allocated);
-    let coarsest = app
-        .world()
-        .resource::<Assets<MultiresMesh>>()
-        .get(&handle)
-        .unwrap()
-        .min_triangles();
+    let coarsest = coarsest(&app, &handle);
     assert_eq!(triangles(&mut app, model), coarsest);
 }
 
@@ -408,12 +402,7 @@ fn zero_priority_keeps_a_model_coarse() {
     let model = spawn_model(&mut app, &handle, Vec3::ZERO);
     app.world_mut().entity_mut(model).insert(LodPriority(0.0));
     app.update();
-    let coarsest = app
-        .world()
-        .resource::<Assets<MultiresMesh>>()
-        .get(&handle)
-        .unwrap()
-        .min_triangles();
+    let coarsest = coarsest(&app, &handle);
     assert_eq!(triangles(&mut app, model), coarsest);
 }
 

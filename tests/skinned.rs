@@ -56,6 +56,21 @@ fn app(budget: u32, root: &str) -> App {
     app
 }
 
+/// Spawns scene 0 of the glTF at `path` as a `MultiresScene`; returns its root.
+fn spawn_scene(app: &mut App, path: &'static str) -> Entity {
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset(path));
+    app.world_mut()
+        .spawn((
+            WorldAssetRoot(scene),
+            MultiresScene::default(),
+            Transform::default(),
+        ))
+        .id()
+}
+
 /// Spawns the robot and a camera, waits until the plugin converted it and the Dance clip
 /// plays (paused, so the test sets the time). Returns the scene root, the clip's node, the
 /// player and the clip's length in seconds.
@@ -65,18 +80,7 @@ fn spawn_character(
     clip_name: &str,
 ) -> (Entity, AnimationNodeIndex, Entity, f32) {
     let gltf: Handle<Gltf> = app.world().resource::<AssetServer>().load(path);
-    let scene = app
-        .world()
-        .resource::<AssetServer>()
-        .load(GltfAssetLabel::Scene(0).from_asset(path));
-    let root = app
-        .world_mut()
-        .spawn((
-            WorldAssetRoot(scene),
-            MultiresScene::default(),
-            Transform::default(),
-        ))
-        .id();
+    let root = spawn_scene(app, path);
     app.world_mut().spawn((
         Camera3d::default(),
         Transform::from_xyz(0.0, 2.5, 9.0).looking_at(Vec3::new(0.0, 2.0, 0.0), Vec3::Y),
@@ -205,8 +209,7 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
             hi = hi.max(reference(v));
         }
         triangles += instance.triangle_count();
-        for (r, entity) in instance.region_entities().into_iter().enumerate() {
-            let entity = entity.expect("skinned regions have entities");
+        for (r, &entity) in instance.region_entities().iter().enumerate() {
             let global = world
                 .get::<GlobalTransform>(entity)
                 .expect("region transform");
@@ -384,18 +387,7 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
 #[test]
 fn a_scene_shows_its_source_meshes_until_its_assets_are_built() {
     let mut app = app(20_000, ASSETS);
-    let scene = app
-        .world()
-        .resource::<AssetServer>()
-        .load(GltfAssetLabel::Scene(0).from_asset(MANNEQUIN));
-    let root = app
-        .world_mut()
-        .spawn((
-            WorldAssetRoot(scene),
-            MultiresScene::default(),
-            Transform::default(),
-        ))
-        .id();
+    let root = spawn_scene(&mut app, MANNEQUIN);
     // The scene's skinned mesh entities, found once the scene has spawned.
     let mut skinned: Vec<Entity> = Vec::new();
     let mut frames_waiting = 0;

@@ -77,6 +77,8 @@ impl PartitionSpec {
 pub struct MultiresMesh {
     regions: Arc<RegionMesh>,
     obbs: Arc<[Obb]>,
+    /// The axis-aligned box around every region box.
+    bounds: Obb,
     pub(super) skin: Option<Arc<super::skin::SkinBinding>>,
 }
 
@@ -96,10 +98,13 @@ impl MultiresMesh {
                         Obb::from_aabb(lo, hi)
                     })
             })
-            .collect();
+            .collect::<Arc<[Obb]>>();
+        let corners: Vec<Vec3> = obbs.iter().flat_map(Obb::corners).collect();
+        let bounds = fit_aabb(&corners).unwrap_or(Obb::from_aabb(Vec3::ZERO, Vec3::ZERO));
         Self {
             regions: Arc::new(regions),
             obbs,
+            bounds,
             skin: None,
         }
     }
@@ -164,6 +169,13 @@ impl MultiresMesh {
     #[must_use]
     pub fn obbs(&self) -> &Arc<[Obb]> {
         &self.obbs
+    }
+
+    /// The axis-aligned box around every region's box, in the mesh's space.
+    #[inline]
+    #[must_use]
+    pub fn bounds(&self) -> Obb {
+        self.bounds
     }
 
     /// Number of regions.

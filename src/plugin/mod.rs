@@ -258,9 +258,8 @@ pub struct MultiresInstance {
     meshes: Vec<Handle<Mesh>>,
     /// Skinned models: the deformation state.
     skin: Option<skin::SkinState>,
-    /// Region entities that are not children of the model (rigid regions under joints).
-    detached: Vec<Entity>,
-    /// Every region entity, by region.
+    /// Every region entity, by region (a skinned model's rigid regions live under their
+    /// joints, the others under the model).
     region_entities: Vec<Entity>,
     /// Unskinned models: per region, whether `SelectLod` wrote a new index buffer, and that
     /// buffer, for `Upload` to swap into the region's mesh. After the swap it holds the
@@ -312,12 +311,10 @@ impl MultiresInstance {
     }
 
     /// Per region, the entity that draws it.
+    #[inline]
     #[must_use]
-    pub fn region_entities(&self) -> Vec<Option<Entity>> {
-        match &self.skin {
-            Some(s) => s.regions.iter().map(|r| r.entity).collect(),
-            None => vec![None; self.meshes.len()],
-        }
+    pub fn region_entities(&self) -> &[Entity] {
+        &self.region_entities
     }
 
     /// Triangles the instance shows now, all regions together.

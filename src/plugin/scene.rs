@@ -86,6 +86,15 @@ type BuildKey = (
     PartitionSpec,
 );
 
+fn build_key(mesh: &Mesh3d, skin: Option<&SkinnedMesh>, options: &MultiresScene) -> BuildKey {
+    (
+        mesh.0.id(),
+        skin.map(|s| s.inverse_bindposes.id()),
+        options.rigid_delta.to_bits(),
+        options.static_partition,
+    )
+}
+
 enum Built {
     /// Building on the async compute pool.
     Pending(Task<Result<MultiresMesh, super::MultiresError>>),
@@ -197,12 +206,7 @@ pub(crate) fn convert_scenes(
             if mesh.has_morph_targets() {
                 continue;
             }
-            let key = (
-                mesh3d.0.id(),
-                skin.map(|s| s.inverse_bindposes.id()),
-                options.rigid_delta.to_bits(),
-                options.static_partition,
-            );
+            let key = build_key(mesh3d, skin, options);
             let built = cache.built.entry(key).or_insert_with(|| {
                 // The conversion copies the mesh here; the build runs on the pool.
                 let indexed = from_bevy_mesh(mesh);
@@ -248,12 +252,7 @@ pub(crate) fn convert_scenes(
                 result.fixed.push(entity);
                 continue;
             }
-            let key = (
-                mesh3d.0.id(),
-                skin.map(|s| s.inverse_bindposes.id()),
-                options.rigid_delta.to_bits(),
-                options.static_partition,
-            );
+            let key = build_key(mesh3d, skin, options);
             let built = match cache.built.get(&key) {
                 Some(Built::Ok(handle, more)) => Some((handle.clone(), *more)),
                 _ => None,

@@ -213,8 +213,6 @@ pub struct MultiresSkin {
 /// Per-region deformation state of one instance.
 #[derive(Debug, Default)]
 pub(crate) struct RegionSkin {
-    /// The region's entity.
-    pub(crate) entity: Option<Entity>,
     /// The region's current index buffer (local vertices).
     pub(crate) indices: Vec<u32>,
     /// Local vertices `indices` refers to, each once.

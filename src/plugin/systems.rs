@@ -6,7 +6,7 @@ use super::{
     MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
-use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
+use crate::budget::{Allocator, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
 use bevy::camera::visibility::NoFrustumCulling;
@@ -99,12 +99,11 @@ fn spawn_regions(
             }
             _ => None,
         };
-        let mut state = binding
+        let state = binding
             .as_ref()
             .map(|b| SkinState::new(b.clone(), &regions));
         let mut handles = Vec::with_capacity(regions.regions().len());
         let mut region_entities = Vec::with_capacity(regions.regions().len());
-        let mut detached = Vec::new();
         for (r, region) in regions.regions().iter().enumerate() {
             let (mesh, parent, rigid) = match &binding {
                 Some(binding) => {
@@ -144,15 +143,9 @@ fn spawn_regions(
             if let Some(material) = material {
                 child.insert(material.clone());
             }
-            if let Some(state) = &mut state {
-                state.regions[r].entity = Some(child.id());
-                if !rigid {
-                    // Its vertices move every frame: Bevy's box from the bind pose is stale.
-                    child.insert(NoFrustumCulling);
-                }
-            }
-            if rigid {
-                detached.push(child.id());
+            if state.is_some() && !rigid {
+                // Its vertices move every frame: Bevy's box from the bind pose is stale.
+                child.insert(NoFrustumCulling);
             }
             region_entities.push(child.id());
             handles.push(handle);
@@ -167,27 +160,14 @@ fn spawn_regions(
             .iter()
             .map(|r| r.min_triangles() as u32)
             .collect();
-        let (lo, hi) = asset
-            .obbs()
-            .iter()
-            .flat_map(Obb::corners)
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-                (lo.min(p), hi.max(p))
-            });
-        let bounds = if lo.cmple(hi).all() {
-            Obb::from_aabb(lo, hi)
-        } else {
-            Obb::from_aabb(Vec3::ZERO, Vec3::ZERO)
-        };
         commands.entity(entity).insert(MultiresInstance {
             caches: RegionCaches::new(&regions),
-            bounds,
+            bounds: asset.bounds(),
             obbs: asset.obbs().clone(),
             regions,
             targets,
             meshes: handles,
             skin: state,
-            detached,
             staged: vec![(false, Vec::new()); region_entities.len()],
             region_entities,
         });
@@ -227,14 +207,13 @@ fn propagate_materials(
     }
 }
 
-/// Hot reload: when a [`MultiresMesh`] changes, every model showing it loses its region
-/// children and its instance (whose observer frees the region meshes), so `spawn_regions`
-/// builds them anew from the new asset.
+/// Hot reload: when a [`MultiresMesh`] changes, every model showing it loses its instance
+/// (whose observer despawns the regions and frees their meshes), so `spawn_regions` builds
+/// them anew from the new asset.
 fn rebuild_modified(
     mut commands: Commands,
     mut events: MessageReader<AssetEvent<MultiresMesh>>,
     models: Query<(Entity, &MultiresModel), With<MultiresInstance>>,
-    regions: Query<(Entity, &ChildOf), With<LodRegion>>,
 ) {
     let mut modified = Vec::new();
     for event in events.read() {
@@ -249,17 +228,12 @@ fn rebuild_modified(
         if !modified.contains(&handle.0.id()) {
             continue;
         }
-        for (region, parent) in &regions {
-            if parent.parent() == model {
-                commands.entity(region).despawn();
-            }
-        }
         commands.entity(model).remove::<MultiresInstance>();
     }
 }
 
-/// Removes a model's region meshes when its instance goes away, and the region entities
-/// that live under joints rather than under the model.
+/// Removes a model's region entities (those under the model and those under joints) and
+/// their meshes when its instance goes away.
 pub(super) fn remove_region_meshes(
     remove: On<Remove, MultiresInstance>,
     mut commands: Commands,
@@ -269,7 +243,7 @@ pub(super) fn remove_region_meshes(
     let Ok(instance) = instances.get(remove.entity) else {
         return;
     };
-    for &entity in &instance.detached {
+    for &entity in &instance.region_entities {
         commands.entity(entity).try_despawn();
     }
     let Some(mut meshes) = meshes else {
@@ -548,6 +522,23 @@ fn deform(
     diag.add_measurement(&diagnostics::DEFORM_MS, || ms);
 }
 
+/// Makes `buffer` the mesh's index buffer by swapping (the old one comes back in `buffer`): no
+/// copy, and no allocation in steady state. False, with a warning, when the mesh's data is no
+/// longer in the main world.
+fn swap_indices(mesh: &mut Mesh, buffer: &mut Vec<u32>) -> bool {
+    match mesh.try_indices_mut_option() {
+        Ok(Some(Indices::U32(indices))) => std::mem::swap(indices, buffer),
+        Ok(_) => mesh.insert_indices(Indices::U32(std::mem::take(buffer))),
+        Err(_) => {
+            warn_once!(
+                "a region mesh's data is no longer in the main world; its LOD is not updated"
+            );
+            return false;
+        }
+    }
+    true
+}
+
 /// Writes what `Deform` produced for one skinned instance into its region meshes: index
 /// buffers that changed, and the vertices blended this frame (only those).
 fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) -> usize {
@@ -560,17 +551,8 @@ fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) ->
             continue;
         }
         if let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) {
-            if state.indices_changed {
-                match mesh.try_indices_mut_option() {
-                    Ok(Some(Indices::U32(indices))) => {
-                        indices.clear();
-                        indices.extend_from_slice(&state.indices);
-                    }
-                    Ok(_) => mesh.insert_indices(Indices::U32(state.indices.clone())),
-                    Err(_) => warn_once!(
-                        "a region mesh's data is no longer in the main world; its LOD is not updated"
-                    ),
-                }
+            // `state.indices` is rewritten whole before it is read again.
+            if state.indices_changed && swap_indices(&mut mesh, &mut state.indices) {
                 changed += 1;
             }
             if !state.written.is_empty() {
@@ -622,18 +604,9 @@ fn upload(
             let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) else {
                 continue;
             };
-            match mesh.try_indices_mut_option() {
-                // Swap the buffers: no copy, and no allocation in steady state.
-                Ok(Some(Indices::U32(indices))) => std::mem::swap(indices, buffer),
-                Ok(_) => mesh.insert_indices(Indices::U32(std::mem::take(buffer))),
-                Err(_) => {
-                    warn_once!(
-                        "a region mesh's data is no longer in the main world; its LOD is not updated"
-                    );
-                    continue;
-                }
+            if swap_indices(&mut mesh, buffer) {
+                changed += 1;
             }
-            changed += 1;
         }
     }
     stats.regions_changed = changed;

@@ -40,10 +40,21 @@ fn oriented_key([a, b, c]: [u32; 3]) -> Option<([u32; 3], bool)> {
     })
 }
 
+/// The active triangles with a foreign corner, each once, in increasing order (`border` is
+/// sorted by corner).
+fn border_triangles(data: &super::Region, active: usize) -> impl Iterator<Item = u32> + '_ {
+    let mut last = u32::MAX;
+    data.border
+        .iter()
+        .take_while(move |bc| (bc.corner as usize) < active)
+        .map(|bc| bc.corner / 3)
+        .filter(move |&t| std::mem::replace(&mut last, t) != t)
+}
+
 /// Every triangle without a foreign corner has three corners at distinct positions (checked
 /// in debug builds: `write_indices` copies such triangles without looking).
 fn own_triangles_have_area(data: &super::Region, indices: &[u32]) -> bool {
-    let border: std::collections::HashSet<u32> = data.border.iter().map(|b| b.corner / 3).collect();
+    let border: std::collections::HashSet<u32> = border_triangles(data, indices.len()).collect();
     indices.chunks_exact(3).enumerate().all(|(t, tri)| {
         let [a, b, c] = [0, 1, 2].map(|k| data.position_of[tri[k] as usize]);
         border.contains(&(t as u32)) || (a != b && b != c && a != c)
@@ -170,19 +181,12 @@ impl RegionCaches {
         skip.clear();
         let mut keys = std::mem::take(&mut self.keys);
         keys.clear();
-        let mut last_triangle = u32::MAX;
-        for bc in &data.border {
-            if bc.corner as usize >= active {
-                break;
-            }
-            let t = bc.corner / 3;
-            if t == last_triangle {
-                continue;
-            }
-            last_triangle = t;
+        for t in border_triangles(data, active) {
             let at = |k: usize| data.position_of[indices[3 * t as usize + k] as usize];
-            if let Some(key) = oriented_key([at(0), at(1), at(2)]) {
-                keys.push((key.0, key.1, t));
+            match oriented_key([at(0), at(1), at(2)]) {
+                Some(key) => keys.push((key.0, key.1, t)),
+                // Two corners at one position (seam copies count as one) make no area.
+                None => skip.push(t),
             }
         }
         keys.sort_unstable();
@@ -209,24 +213,11 @@ impl RegionCaches {
         out.clear();
         out.reserve(indices.len());
         let mut next = 0; // first triangle not yet copied or checked
-        let mut last_triangle = u32::MAX;
-        for bc in &data.border {
-            if bc.corner as usize >= active {
-                break;
-            }
-            let t = bc.corner / 3;
-            if t == last_triangle {
-                continue;
-            }
-            last_triangle = t;
+        for t in border_triangles(data, active) {
             let t = t as usize;
             out.extend_from_slice(&indices[3 * next..3 * t]);
-            let tri = &indices[3 * t..3 * t + 3];
-            // Two corners at one position (seam copies count as one) make no area.
-            let [a, b, c] = [0, 1, 2].map(|k| data.position_of[tri[k] as usize]);
-            let degenerate = a == b || b == c || a == c;
-            if !degenerate && skip.binary_search(&(t as u32)).is_err() {
-                out.extend_from_slice(tri);
+            if skip.binary_search(&(t as u32)).is_err() {
+                out.extend_from_slice(&indices[3 * t..3 * t + 3]);
             }
             next = t + 1;
         }
