@@ -101,6 +101,8 @@ fn run(hysteresis: u32) {
         .id();
 
     let mut allocate = Vec::new();
+    let mut select = Vec::new();
+    let mut upload = Vec::new();
     let mut update = Vec::new();
     let mut frame_total = Vec::new();
     let mut frame_wall = Vec::new();
@@ -124,6 +126,8 @@ fn run(hysteresis: u32) {
         );
         if frame >= WARMUP {
             allocate.push(stats.allocation_ms);
+            select.push(stats.update_ms - stats.upload_ms);
+            upload.push(stats.upload_ms);
             update.push(stats.update_ms);
             frame_total.push(stats.allocation_ms + stats.update_ms);
             changed += stats.regions_changed;
@@ -133,6 +137,8 @@ fn run(hysteresis: u32) {
     }
     for v in [
         &mut allocate,
+        &mut select,
+        &mut upload,
         &mut update,
         &mut frame_total,
         &mut frame_wall,
@@ -148,6 +154,8 @@ fn run(hysteresis: u32) {
     println!("|---|---:|---:|---:|");
     for (name, v) in [
         ("Allocate", &allocate),
+        ("SelectLod", &select),
+        ("Upload", &upload),
         ("SelectLod + Upload", &update),
         ("Allocate + SelectLod + Upload", &frame_total),
         ("whole app.update() (MinimalPlugins)", &frame_wall),

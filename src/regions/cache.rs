@@ -13,10 +13,13 @@ use crate::multires::PolygonCache;
 pub struct RegionCaches {
     caches: Vec<PolygonCache>,
     dirty: Vec<bool>,
-    /// Scratch: triangles not to emit.
-    skip: Vec<u32>,
-    /// Scratch: border triangles by oriented position key.
-    keys: Vec<([u32; 3], bool, u32)>,
+    /// Scratch: border triangles not to emit, by position in `Region::border`.
+    skip: Vec<bool>,
+    /// Scratch: border triangles by hashed position key (high half) and position in
+    /// `Region::border` (low half).
+    keys: Vec<u64>,
+    /// Scratch: the border triangles of one hash, by exact oriented key.
+    group: Vec<([u32; 3], bool, u32)>,
 }
 
 /// The triangle's positions sorted, and whether the sort kept its winding; `None` when
@@ -40,21 +43,28 @@ fn oriented_key([a, b, c]: [u32; 3]) -> Option<([u32; 3], bool)> {
     })
 }
 
-/// The active triangles with a foreign corner, each once, in increasing order (`border` is
-/// sorted by corner).
-fn border_triangles(data: &super::Region, active: usize) -> impl Iterator<Item = u32> + '_ {
-    let mut last = u32::MAX;
-    data.border
-        .iter()
-        .take_while(move |bc| (bc.corner as usize) < active)
-        .map(|bc| bc.corner / 3)
-        .filter(move |&t| std::mem::replace(&mut last, t) != t)
+/// The active triangles with a foreign corner, increasing.
+fn border_triangles(data: &super::Region, active_triangles: usize) -> &[u32] {
+    let n = data
+        .border
+        .partition_point(|&t| (t as usize) < active_triangles);
+    &data.border[..n]
+}
+
+/// A hash of a sorted position triple: equal triples hash equally.
+#[inline]
+fn key_hash([x, y, z]: [u32; 3]) -> u32 {
+    let h = x.wrapping_mul(0x9E37_79B1) ^ y.wrapping_mul(0x85EB_CA77) ^ z.wrapping_mul(0xC2B2_AE3D);
+    h ^ (h >> 15)
 }
 
 /// Every triangle without a foreign corner has three corners at distinct positions (checked
 /// in debug builds: `write_indices` copies such triangles without looking).
 fn own_triangles_have_area(data: &super::Region, indices: &[u32]) -> bool {
-    let border: std::collections::HashSet<u32> = border_triangles(data, indices.len()).collect();
+    let border: std::collections::HashSet<u32> = border_triangles(data, indices.len() / 3)
+        .iter()
+        .copied()
+        .collect();
     indices.chunks_exact(3).enumerate().all(|(t, tri)| {
         let [a, b, c] = [0, 1, 2].map(|k| data.position_of[tri[k] as usize]);
         border.contains(&(t as u32)) || (a != b && b != c && a != c)
@@ -74,6 +84,7 @@ impl RegionCaches {
             dirty: vec![true; mesh.regions().len()],
             skip: Vec::new(),
             keys: Vec::new(),
+            group: Vec::new(),
         }
     }
 
@@ -122,8 +133,9 @@ impl RegionCaches {
     }
 
     /// Moves a region to the finest level with at most `triangles` triangles (never below
-    /// its base) and returns the count reached. A change marks the region and the regions
-    /// that border on it dirty.
+    /// its base) and returns the count reached. A change marks the region dirty, and the
+    /// regions whose border corners it moves to other representatives: their corners are
+    /// rewritten here, by the steps crossed (no search).
     ///
     /// # Panics
     /// Panics when `region` is out of range or `mesh` is not the mesh the caches were made
@@ -138,10 +150,24 @@ impl RegionCaches {
         let cache = &mut self.caches[region];
         let before = cache.level();
         let reached = cache.set_triangle_count(&data.mesh, triangles);
-        if cache.level() != before {
-            self.dirty[region] = true;
-            for &d in &data.dependents {
-                self.dirty[d as usize] = true;
+        let after = cache.level();
+        if after == before {
+            return reached;
+        }
+        self.dirty[region] = true;
+        let events = &data.front_events;
+        let first = |level: usize| events.partition_point(|e| (e.step as usize) < level);
+        if after > before {
+            // Coarser: each corner ends at the `after` of the last step it passes.
+            for e in &events[first(before)..first(after)] {
+                self.caches[e.region as usize].indices_mut()[e.corner as usize] = e.after;
+                self.dirty[e.region as usize] = true;
+            }
+        } else {
+            // Finer: each corner ends at the `before` of the first step it passes back.
+            for e in events[first(after)..first(before)].iter().rev() {
+                self.caches[e.region as usize].indices_mut()[e.corner as usize] = e.before;
+                self.dirty[e.region as usize] = true;
             }
         }
         reached
@@ -149,74 +175,78 @@ impl RegionCaches {
 
     /// Writes a region's triangles into `out` (cleared first), as indices into the region's
     /// local vertex table ([`Region::progressive_mesh`](super::Region::progressive_mesh)),
-    /// and clears its dirty flag. Foreign corners are replaced by their current
-    /// representatives; border triangles that became degenerate are skipped. Returns the
-    /// number of triangles written.
+    /// and clears its dirty flag. Foreign corners hold their current representatives (kept
+    /// up to date by [`set_triangle_count`](Self::set_triangle_count)); border triangles that
+    /// became degenerate are skipped. Returns the number of triangles written.
     ///
     /// # Panics
     /// Panics when `region` is out of range or `mesh` is not the mesh the caches were made
     /// for.
     pub fn write_indices(&mut self, mesh: &RegionMesh, region: usize, out: &mut Vec<u32>) -> usize {
         let data = &mesh.regions()[region];
-        let active = 3 * self.caches[region].triangle_count();
-        // Resolve foreign corners in place: the region's own steps never touch them.
-        for bc in &data.border {
-            if bc.corner as usize >= active {
-                break;
-            }
-            let level = self.caches[bc.owner as usize].level() as u32;
-            let chain = &data.chain[bc.chain_start as usize..][..bc.chain_len as usize];
-            // A vertex removed at step s is present at every level <= s.
-            let local = chain
-                .iter()
-                .find(|&&(step, _)| step >= level)
-                .map_or(chain[chain.len() - 1].1, |&(_, l)| l);
-            self.caches[region].indices_mut()[bc.corner as usize] = local;
-        }
+        let cache = &self.caches[region];
+        let indices = cache.indices();
+        let border = border_triangles(data, cache.triangle_count());
         // Border triangles whose representatives merged: degenerate ones, and "fins" (the
         // same three vertices twice, once each way round) are not emitted. Only border
         // triangles can become either: a region's own steps never create them.
-        let indices = self.caches[region].indices();
-        let mut skip = std::mem::take(&mut self.skip);
+        let skip = &mut self.skip;
         skip.clear();
-        let mut keys = std::mem::take(&mut self.keys);
+        skip.resize(border.len(), false);
+        let keys = &mut self.keys;
         keys.clear();
-        for t in border_triangles(data, active) {
+        let oriented = |t: u32| {
             let at = |k: usize| data.position_of[indices[3 * t as usize + k] as usize];
-            match oriented_key([at(0), at(1), at(2)]) {
-                Some(key) => keys.push((key.0, key.1, t)),
+            oriented_key([at(0), at(1), at(2)])
+        };
+        for (i, &t) in border.iter().enumerate() {
+            match oriented(t) {
+                Some((key, _)) => keys.push(u64::from(key_hash(key)) << 32 | i as u64),
                 // Two corners at one position (seam copies count as one) make no area.
-                None => skip.push(t),
+                None => skip[i] = true,
             }
         }
         keys.sort_unstable();
-        for group in keys.chunk_by(|a, b| a.0 == b.0) {
-            if group.len() < 2 {
-                continue;
+        for run in keys.chunk_by(|a, b| a >> 32 == b >> 32) {
+            if run.len() < 2 {
+                continue; // the common case: no other border triangle has these positions
             }
-            let forward: Vec<u32> = group.iter().filter(|k| k.1).map(|k| k.2).collect();
-            let backward: Vec<u32> = group.iter().filter(|k| !k.1).map(|k| k.2).collect();
-            // Opposite pairs cancel; of what is left, one copy stays.
-            let pairs = forward.len().min(backward.len());
-            skip.extend_from_slice(&forward[..pairs]);
-            skip.extend_from_slice(&backward[..pairs]);
-            let rest = if forward.len() > pairs {
-                &forward[pairs..]
-            } else {
-                &backward[pairs..]
-            };
-            skip.extend(rest.iter().skip(1));
+            let group = &mut self.group;
+            group.clear();
+            group.extend(run.iter().filter_map(|&k| {
+                let i = k as u32;
+                oriented(border[i as usize]).map(|(key, forward)| (key, forward, i))
+            }));
+            group.sort_unstable();
+            for same in group.chunk_by(|a, b| a.0 == b.0) {
+                // Opposite pairs cancel; of what is left, one copy stays.
+                let forward = same.iter().filter(|k| k.1).count();
+                let backward = same.len() - forward;
+                let pairs = forward.min(backward);
+                let mut kept_one = false;
+                let (mut f, mut b) = (0, 0);
+                for &(_, is_forward, i) in same {
+                    let cancelled = if is_forward {
+                        f += 1;
+                        f <= pairs
+                    } else {
+                        b += 1;
+                        b <= pairs
+                    };
+                    if cancelled || std::mem::replace(&mut kept_one, true) {
+                        skip[i as usize] = true;
+                    }
+                }
+            }
         }
-        skip.sort_unstable();
-        // Own triangles are copied in runs; only border triangles (those with a foreign
-        // corner, listed in `data.border` in corner order) are checked.
+        // Own triangles are copied in runs; only border triangles are checked.
         out.clear();
         out.reserve(indices.len());
         let mut next = 0; // first triangle not yet copied or checked
-        for t in border_triangles(data, active) {
+        for (&t, &skipped) in border.iter().zip(skip.iter()) {
             let t = t as usize;
             out.extend_from_slice(&indices[3 * next..3 * t]);
-            if skip.binary_search(&(t as u32)).is_err() {
+            if !skipped {
                 out.extend_from_slice(&indices[3 * t..3 * t + 3]);
             }
             next = t + 1;
@@ -226,8 +256,6 @@ impl RegionCaches {
             own_triangles_have_area(data, indices),
             "a region's own collapses never leave a triangle without area"
         );
-        self.skip = skip;
-        self.keys = keys;
         self.dirty[region] = false;
         out.len() / 3
     }

@@ -115,16 +115,21 @@ pub fn triangle_owner(regions: [u32; 3]) -> u32 {
     }
 }
 
-/// A border-triangle corner that holds another region's vertex.
+/// A foreign corner whose representative changes when the region owning its vertex passes
+/// one step: moving past `step` (to a level above it) writes `after` into the corner, moving
+/// back writes `before`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct BorderCorner {
-    /// Index into the region's full-detail index buffer.
+pub(crate) struct FrontEvent {
+    /// The owner's step, as in [`PolygonCache::level`](crate::multires::PolygonCache::level):
+    /// the vertex `before` is present at every level `<= step`.
+    pub(crate) step: u32,
+    /// The region whose triangle holds the corner.
+    pub(crate) region: u32,
+    /// Index into that region's full-detail index buffer.
     pub(crate) corner: u32,
-    /// The region that owns the vertex.
-    pub(crate) owner: u32,
-    /// Range in `Region::chain`: the vertex and its successive representatives.
-    pub(crate) chain_start: u32,
-    pub(crate) chain_len: u32,
+    /// Local vertices of `region`.
+    pub(crate) before: u32,
+    pub(crate) after: u32,
 }
 
 /// One region of a [`RegionMesh`].
@@ -134,15 +139,12 @@ pub struct Region {
     pub(crate) mesh: ProgressiveMesh,
     /// Local vertex -> vertex of the source mesh.
     pub(crate) global: Vec<u32>,
-    /// Foreign corners, sorted by corner.
-    pub(crate) border: Vec<BorderCorner>,
-    /// `(removed at step, local vertex)`: a foreign vertex and its representatives in turn;
-    /// the last one is never removed (`u32::MAX`).
-    pub(crate) chain: Vec<(u32, u32)>,
+    /// Triangles with a foreign corner, increasing.
+    pub(crate) border: Vec<u32>,
+    /// Where this region's steps move other regions' foreign corners, sorted by step.
+    pub(crate) front_events: Vec<FrontEvent>,
     /// Regions whose vertices appear in this region's triangles.
     pub(crate) neighbors: Vec<u32>,
-    /// Regions in whose triangles this region's vertices appear.
-    pub(crate) dependents: Vec<u32>,
     pub(crate) own_vertices: usize,
     pub(crate) bounds: (Vec3, Vec3),
     /// Local vertex -> the first local vertex at the same position (seams weld).
@@ -307,13 +309,13 @@ impl RegionMesh {
             }
             regions.push(region);
         }
+        let mut events = vec![Vec::new(); regions.len()];
         for (r, region) in regions.iter_mut().enumerate() {
-            link_border(region, r as u32, &region_of, &moves, &mesh);
+            link_border(region, r as u32, &region_of, &moves, &mesh, &mut events);
         }
-        for r in 0..regions.len() {
-            for n in regions[r].neighbors.clone() {
-                regions[n as usize].dependents.push(r as u32);
-            }
+        for (region, mut events) in regions.iter_mut().zip(events) {
+            events.sort_unstable_by_key(|e: &FrontEvent| (e.step, e.region, e.corner));
+            region.front_events = events;
         }
         Ok(Self {
             partition: Partition::from_region_of(region_of, count),
@@ -351,8 +353,8 @@ impl RegionMesh {
             .map(|r| {
                 r.mesh.memory_bytes()
                     + r.global.len() * 4
-                    + r.border.len() * size_of::<BorderCorner>()
-                    + r.chain.len() * 8
+                    + r.border.len() * 4
+                    + r.front_events.len() * size_of::<FrontEvent>()
             })
             .sum()
     }
@@ -463,9 +465,8 @@ fn build_region(
         mesh: built.mesh,
         global,
         border: Vec::new(),
-        chain: Vec::new(),
+        front_events: Vec::new(),
         neighbors: Vec::new(),
-        dependents: Vec::new(),
         position_of: Vec::new(),
         own_vertices,
         bounds,
@@ -611,6 +612,7 @@ fn link_border(
     region_of: &[u32],
     moves: &[(u32, u32)],
     mesh: &IndexedMesh,
+    events: &mut [Vec<FrontEvent>],
 ) {
     let mut local: std::collections::HashMap<u32, u32> = region
         .global
@@ -628,26 +630,32 @@ fn link_border(
             continue;
         }
         neighbors.push(owner);
-        let chain_start = region.chain.len() as u32;
+        let t = (corner / 3) as u32;
+        if region.border.last() != Some(&t) {
+            region.border.push(t);
+        }
+        // The vertex and its representatives in turn, each removed by a step of the owner
+        // (the owner's collapses stay inside it); the last one is never removed.
         let mut g = v;
+        let mut before = lv;
         loop {
             let (step, parent) = moves[g as usize];
-            let l = *local.entry(g).or_insert_with(|| {
-                extra.push(g);
-                (region.global.len() + extra.len() - 1) as u32
-            });
-            region.chain.push((step, l));
             if step == u32::MAX {
                 break;
             }
-            g = parent;
+            let after = *local.entry(parent).or_insert_with(|| {
+                extra.push(parent);
+                (region.global.len() + extra.len() - 1) as u32
+            });
+            events[owner as usize].push(FrontEvent {
+                step,
+                region: r,
+                corner: corner as u32,
+                before,
+                after,
+            });
+            (g, before) = (parent, after);
         }
-        region.border.push(BorderCorner {
-            corner: corner as u32,
-            owner,
-            chain_start,
-            chain_len: region.chain.len() as u32 - chain_start,
-        });
     }
     if !extra.is_empty() {
         let added = subset(mesh, &extra);
