@@ -5,7 +5,7 @@ use bevy_aslod::budget::{
     AllocationParams, Allocator, BudgetError, Obb, ProjectedAreaCamera, RegionInput, allocate,
     fit_aabb, fit_obb, fit_obb_pca, silhouette,
 };
-use glam::{DMat4, DVec2, DVec3, DVec4, Mat3, Mat4, Quat, Vec2, Vec3, Vec4Swizzles};
+use glam::{Affine3A, DMat4, DVec2, DVec3, DVec4, Mat3, Mat4, Quat, Vec2, Vec3, Vec4Swizzles};
 use proptest::prelude::*;
 
 // ---------------------------------------------------------------------------------------------
@@ -579,6 +579,11 @@ fn reference_corners(obb: &Obb) -> [DVec3; 8] {
 /// space, divide, take the hull of everything (the projection of the near-clipped volume), clip
 /// to the viewport. All in `f64`, sharing nothing with the fast path.
 fn reference_area(scene: &Scene, obb: &Obb) -> f64 {
+    reference_area_of_corners(scene, &reference_corners(obb))
+}
+
+/// [`reference_area`] of any eight corners in the same order (a parallelepiped too).
+fn reference_area_of_corners(scene: &Scene, corners: &[DVec3; 8]) -> f64 {
     const FACES: [[usize; 4]; 6] = [
         [0, 2, 6, 4],
         [1, 3, 7, 5],
@@ -589,10 +594,7 @@ fn reference_area(scene: &Scene, obb: &Obb) -> f64 {
     ];
     let m = scene.clip_from_world();
     let near = scene.near_plane();
-    let clip: Vec<DVec4> = reference_corners(obb)
-        .iter()
-        .map(|c| m * c.extend(1.0))
-        .collect();
+    let clip: Vec<DVec4> = corners.iter().map(|c| m * c.extend(1.0)).collect();
     let mut points: Vec<DVec2> = Vec::new();
     for face in FACES {
         let polygon: Vec<DVec4> = face.iter().map(|&i| clip[i]).collect();
@@ -794,6 +796,51 @@ fn projected_area_matches_brute_force_on_100k_random_boxes() {
     for s in &stats {
         assert!(s.worst_relative <= 1e-6 && s.needed_floor == 0, "{stats:?}");
     }
+}
+
+/// A box in a model's space, seen through a camera moved into that space, projects as its
+/// eight corners do through the model's transform: rotations, translations, and non-uniform
+/// scales (which make the box a parallelepiped in the world).
+#[test]
+fn camera_in_model_space_matches_the_transformed_corners() {
+    let mut rng = Rng(77);
+    let mut compared = 0;
+    for case in 0..20_000 {
+        let (scene, near) = random_scene(&mut rng);
+        let world_box = random_box(&mut rng, &scene, near);
+        let scale = if rng.unit() < 0.5 {
+            Vec3::splat(rng.range(0.2, 5.0))
+        } else {
+            rng.vec3(0.2, 5.0)
+        };
+        let rotation = rng.rotation();
+        // Put the model where its box lands on the world box's centre.
+        let local = Obb::new(
+            rng.vec3(-2.0, 2.0),
+            world_box.axes,
+            world_box.half_extents / scale.max_element(),
+        );
+        let partial = Affine3A::from_scale_rotation_translation(scale, rotation, Vec3::ZERO);
+        let model =
+            Affine3A::from_translation(world_box.center - partial.transform_point3(local.center))
+                * partial;
+        let camera = scene.camera().for_model(&model).expect("invertible");
+        let fast = f64::from(camera.projected_area(&local));
+        let world = Mat4::from(model).as_dmat4();
+        let corners = reference_corners(&local).map(|c| (world * c.extend(1.0)).xyz());
+        let reference = reference_area_of_corners(&scene, &corners);
+        let viewport_area = f64::from(scene.viewport.x * scene.viewport.y);
+        assert!(
+            (fast - reference).abs() <= 1e-4 * reference + 1e-7 * viewport_area,
+            "case {case}: fast {fast}, reference {reference}\n{scene:?}\n{local:?}\n{model:?}"
+        );
+        compared += usize::from(reference > 0.0);
+    }
+    assert!(compared > 5_000, "most boxes are in view: {compared}");
+    // A transform that cannot be inverted has no model space.
+    let flat = Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0));
+    let (scene, _) = random_scene(&mut rng);
+    assert!(scene.camera().for_model(&flat).is_none());
 }
 
 fn perspective_scene(projection: Mat4, kind: Projection) -> Scene {

@@ -1,7 +1,7 @@
 //! The screen area of an oriented box; the method is on [`ProjectedAreaCamera`].
 
 use super::{BudgetError, Obb};
-use glam::{DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec4, Vec4Swizzles};
+use glam::{Affine3A, DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec4, Vec4Swizzles};
 
 /// The face planes, one bit each, in the order of the [`silhouette`] code: bit `2k` is set
 /// when the eye is below the box on axis `k` (it sees the `−k` face), bit `2k + 1` when it is
@@ -183,6 +183,10 @@ pub struct ProjectedAreaCamera {
     origin_clip_f64: DVec4,
     /// `near` in `f64`.
     near_f64: DVec4,
+    /// The visible side of the near plane in clip space.
+    near_clip: DVec4,
+    /// `eye` in `f64`.
+    eye_f64: DVec4,
     /// The centre of projection in world space: `(position, 1)`, or for an orthographic camera
     /// `(unit direction towards the viewer, 0)`.
     eye: Vec4,
@@ -287,29 +291,95 @@ impl ProjectedAreaCamera {
         } else {
             eye.xyz()
         };
-        // Round the origin first: boxes are offset from the f32 origin, so its clip position
-        // must be that of the f32 origin too, or the rounding moves the eye.
-        let origin = origin.as_vec3().as_dvec3();
-        let origin_clip = clip_from_world * origin.extend(1.0);
-        let near_world = clip_from_world.transpose() * near_clip;
-        let near = near_world.xyz().extend(near_clip.dot(origin_clip));
         let eye = if orthographic {
             eye.xyz().normalize().extend(0.0)
         } else {
             eye
         };
-        Ok(Self {
-            clip_from_world: clip_from_world.as_mat4(),
+        Ok(Self::assemble(
+            clip_from_world,
+            eye,
+            origin,
+            near_clip,
+            viewport_size,
+        ))
+    }
+
+    /// The camera's fields from `clip_from_space` (any space: world, or a model's), the eye
+    /// and a reference point in that space, and the visible side of the near plane in clip
+    /// space.
+    fn assemble(
+        clip_from_space: DMat4,
+        eye: DVec4,
+        origin: DVec3,
+        near_clip: DVec4,
+        viewport_size: Vec2,
+    ) -> Self {
+        // Round the origin first: boxes are offset from the f32 origin, so its clip position
+        // must be that of the f32 origin too, or the rounding moves the eye.
+        let origin = origin.as_vec3().as_dvec3();
+        let origin_clip = clip_from_space * origin.extend(1.0);
+        let near_space = clip_from_space.transpose() * near_clip;
+        let near = near_space.xyz().extend(near_clip.dot(origin_clip));
+        Self {
+            clip_from_world: clip_from_space.as_mat4(),
             origin: origin.as_vec3(),
             origin_clip: origin_clip.as_vec4(),
-            clip_from_world_f64: clip_from_world,
+            clip_from_world_f64: clip_from_space,
             origin_clip_f64: origin_clip,
             near_f64: near,
+            near_clip,
+            eye_f64: eye,
             eye: eye.as_vec4(),
             near: near.as_vec4(),
             viewport: viewport_size,
             ndc_to_pixels: viewport_size.x * viewport_size.y * 0.25,
-        })
+        }
+    }
+
+    /// The same camera seen from a model's own space: boxes given in the model's space then
+    /// project as they do through `world_from_model`. One call per model instead of one
+    /// [`Obb::transformed`] per box, and exact where that one is conservative (a non-uniform
+    /// scale or shear makes a box a parallelepiped, which is projected as it is).
+    ///
+    /// Returns `None` when `world_from_model` is not invertible or not finite.
+    ///
+    /// ```
+    /// use bevy_aslod::budget::{Obb, ProjectedAreaCamera};
+    /// use glam::{Affine3A, Mat3, Mat4, Vec2, Vec3};
+    ///
+    /// let view = Mat4::look_at_rh(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y);
+    /// let projection = Mat4::perspective_rh(1.0, 1.0, 0.1, 100.0);
+    /// let camera = ProjectedAreaCamera::new(view, projection, Vec2::splat(512.0)).unwrap();
+    /// let model = Affine3A::from_translation(Vec3::new(1.0, 0.0, 0.0));
+    /// let local = Obb::new(Vec3::ZERO, Mat3::IDENTITY, Vec3::splat(0.5));
+    /// let in_model = camera.for_model(&model).unwrap().projected_area(&local);
+    /// let in_world = camera.projected_area(&local.transformed(&model));
+    /// assert!((in_model - in_world).abs() <= 1e-3 * in_world);
+    /// ```
+    #[must_use]
+    pub fn for_model(&self, world_from_model: &Affine3A) -> Option<Self> {
+        let world_from_model = Mat4::from(*world_from_model).as_dmat4();
+        let det = world_from_model.determinant();
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let model_from_world = world_from_model.inverse();
+        let eye = model_from_world * self.eye_f64;
+        let eye = if self.eye_f64.w == 0.0 {
+            eye.xyz().try_normalize()?.extend(0.0)
+        } else {
+            eye / eye.w
+        };
+        let origin = (model_from_world * self.origin.as_dvec3().extend(1.0)).xyz();
+        let camera = Self::assemble(
+            self.clip_from_world_f64 * world_from_model,
+            eye,
+            origin,
+            self.near_clip,
+            self.viewport,
+        );
+        (camera.clip_from_world_f64.is_finite() && camera.eye_f64.is_finite()).then_some(camera)
     }
 
     /// Like [`new`](Self::new), from the camera's world transform (`world_from_view`, e.g.

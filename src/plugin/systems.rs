@@ -341,8 +341,17 @@ fn allocate(
     let cameras = &scratch.cameras;
     let full_detail = full_detail.0;
     let fill = |chunk: &mut [AreaJob<'_>]| {
+        let mut local = Vec::with_capacity(cameras.len());
         for ((instance, transform, priority), out) in chunk {
-            region_inputs(instance, transform, *priority, cameras, full_detail, out);
+            region_inputs(
+                instance,
+                transform,
+                *priority,
+                cameras,
+                full_detail,
+                &mut local,
+                out,
+            );
         }
     };
     if jobs.len() > 1 {
@@ -403,14 +412,17 @@ type AreaJob<'a> = (
     &'a mut [RegionInput],
 );
 
-/// One model's [`RegionInput`]s: each region's box in world space, its largest projected
-/// area over the cameras (skipped without LOD, which does not use it), the model's priority.
+/// One model's [`RegionInput`]s: each region's box, its largest projected area over the
+/// cameras (skipped without LOD, which does not use it), the model's priority. Unskinned
+/// boxes stay in the model's space and the cameras move into it (`local`, scratch); skinned
+/// ones are already in the world.
 fn region_inputs(
     instance: &MultiresInstance,
     transform: &GlobalTransform,
     priority: Option<&LodPriority>,
     cameras: &[ProjectedAreaCamera],
     full_detail: bool,
+    local: &mut Vec<ProjectedAreaCamera>,
     out: &mut [RegionInput],
 ) {
     let c = priority
@@ -419,23 +431,37 @@ fn region_inputs(
         .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
     let affine = transform.affine();
     let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
+    local.clear();
+    if skinned.is_none() && !full_detail {
+        local.extend(cameras.iter().filter_map(|cam| cam.for_model(&affine)));
+        if local.len() < cameras.len() {
+            // A transform without an inverse (a zero scale) shows nothing.
+            local.clear();
+        }
+    }
     // Every region box lies inside the model's box: when that one projects to nothing in
     // every view, so do they (skinned regions move with their bones, so not for them).
-    let culled = !full_detail && skinned.is_none() && !cameras.is_empty() && {
-        let bounds = instance.bounds.transformed(&affine);
-        cameras.iter().all(|cam| cam.projected_area(&bounds) <= 0.0)
-    };
+    let culled = !full_detail
+        && skinned.is_none()
+        && local
+            .iter()
+            .all(|cam| cam.projected_area(&instance.bounds) <= 0.0);
     for ((r, region), input) in instance.regions.regions().iter().enumerate().zip(out) {
         let area = if full_detail || culled {
             0.0
-        } else {
-            let obb = match skinned.and_then(|boxes| boxes.get(r)) {
-                Some(obb) => *obb,
-                None => instance.obbs[r].transformed(&affine),
-            };
+        } else if let Some(boxes) = skinned {
+            let obb = boxes
+                .get(r)
+                .copied()
+                .unwrap_or_else(|| instance.obbs[r].transformed(&affine));
             cameras
                 .iter()
                 .map(|cam| cam.projected_area(&obb))
+                .fold(0.0f32, f32::max)
+        } else {
+            local
+                .iter()
+                .map(|cam| cam.projected_area(&instance.obbs[r]))
                 .fold(0.0f32, f32::max)
         };
         let area = if area.is_finite() { area } else { 0.0 };

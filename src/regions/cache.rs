@@ -66,7 +66,7 @@ fn own_triangles_have_area(data: &super::Region, indices: &[u32]) -> bool {
         .copied()
         .collect();
     indices.chunks_exact(3).enumerate().all(|(t, tri)| {
-        let [a, b, c] = [0, 1, 2].map(|k| data.position_of[tri[k] as usize]);
+        let [a, b, c] = [0, 1, 2].map(|k| data.position_of(tri[k]));
         border.contains(&(t as u32)) || (a != b && b != c && a != c)
     })
 }
@@ -196,8 +196,13 @@ impl RegionCaches {
         let keys = &mut self.keys;
         keys.clear();
         let oriented = |t: u32| {
-            let at = |k: usize| data.position_of[indices[3 * t as usize + k] as usize];
-            oriented_key([at(0), at(1), at(2)])
+            let t = 3 * t as usize;
+            let [a, b, c]: [u32; 3] = indices[t..t + 3].try_into().expect("three corners");
+            oriented_key([
+                data.position_of(a),
+                data.position_of(b),
+                data.position_of(c),
+            ])
         };
         for (i, &t) in border.iter().enumerate() {
             match oriented(t) {

@@ -147,11 +147,22 @@ pub struct Region {
     pub(crate) neighbors: Vec<u32>,
     pub(crate) own_vertices: usize,
     pub(crate) bounds: (Vec3, Vec3),
-    /// Local vertex -> the first local vertex at the same position (seams weld).
+    /// Local vertex -> the first local vertex at the same position (seams weld); empty when
+    /// no two vertices share a position.
     pub(crate) position_of: Vec<u32>,
 }
 
 impl Region {
+    /// The first local vertex at the same position as local vertex `v`.
+    #[inline]
+    pub(crate) fn position_of(&self, v: u32) -> u32 {
+        if self.position_of.is_empty() {
+            v
+        } else {
+            self.position_of[v as usize]
+        }
+    }
+
     /// The region's progressive sequence. Its vertex table is local: see
     /// [`global_vertices`](Self::global_vertices).
     #[inline]
@@ -665,5 +676,10 @@ fn link_border(
     neighbors.sort_unstable();
     neighbors.dedup();
     region.neighbors = neighbors;
-    region.position_of = weld_positions(&region.mesh.mesh().positions).remap;
+    let weld = weld_positions(&region.mesh.mesh().positions);
+    region.position_of = if weld.unique == weld.remap.len() {
+        Vec::new()
+    } else {
+        weld.remap
+    };
 }
