@@ -187,8 +187,8 @@ pub struct ProjectedAreaCamera {
     near_clip: DVec4,
     /// `eye` in `f64`.
     eye_f64: DVec4,
-    /// The centre of projection in world space: `(position, 1)`, or for an orthographic camera
-    /// `(unit direction towards the viewer, 0)`.
+    /// The centre of projection in world space (or the model's, see `for_model`):
+    /// `(position, 1)`, or for an orthographic camera `(unit direction towards the viewer, 0)`.
     eye: Vec4,
     /// The near plane in world space, relative to `origin`: visible where
     /// `near.xyz · (x − origin) + near.w ≥ 0`. Made in `f64` from the clip-space plane, which

@@ -6,9 +6,10 @@ use crate::multires::PolygonCache;
 /// One instance's levels of every region of a [`RegionMesh`].
 ///
 /// Each region has its own [`PolygonCache`] and triangle count. Changing a region's level
-/// marks it and every region that borders on it dirty, because their border triangles must
-/// look up new representatives; [`write_indices`](Self::write_indices) resolves them and
-/// writes a region's index buffer, ready to render by itself.
+/// marks it dirty, and also the neighbours whose border corners held a vertex that the
+/// crossed steps removed or brought back: those corners get their new representatives
+/// there and then. [`write_indices`](Self::write_indices) writes a dirty region's index
+/// buffer, ready to render by itself.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RegionCaches {
     caches: Vec<PolygonCache>,
