@@ -799,8 +799,8 @@ fn projected_area_matches_brute_force_on_100k_random_boxes() {
 }
 
 /// A box in a model's space, seen through a camera moved into that space, projects as its
-/// eight corners do through the model's transform: rotations, translations, and non-uniform
-/// scales (which make the box a parallelepiped in the world).
+/// eight corners do through the model's transform: rotations, translations, mirrors and
+/// non-uniform scales (which make the box a parallelepiped in the world).
 #[test]
 fn camera_in_model_space_matches_the_transformed_corners() {
     let mut rng = Rng(77);
@@ -808,17 +808,20 @@ fn camera_in_model_space_matches_the_transformed_corners() {
     for case in 0..20_000 {
         let (scene, near) = random_scene(&mut rng);
         let world_box = random_box(&mut rng, &scene, near);
-        let scale = if rng.unit() < 0.5 {
+        let mut scale = if rng.unit() < 0.5 {
             Vec3::splat(rng.range(0.2, 5.0))
         } else {
             rng.vec3(0.2, 5.0)
         };
+        if rng.unit() < 0.25 {
+            scale.x = -scale.x; // mirrored
+        }
         let rotation = rng.rotation();
         // Put the model where its box lands on the world box's centre.
         let local = Obb::new(
             rng.vec3(-2.0, 2.0),
             world_box.axes,
-            world_box.half_extents / scale.max_element(),
+            world_box.half_extents / scale.abs().max_element(),
         );
         let partial = Affine3A::from_scale_rotation_translation(scale, rotation, Vec3::ZERO);
         let model =

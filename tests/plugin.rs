@@ -293,6 +293,32 @@ fn models_off_the_view_axis_are_seen() {
 }
 
 #[test]
+fn flattened_and_mirrored_models_are_seen() {
+    // A zero scale on one axis has no model space to move the camera into: such a model
+    // (still drawn, as a sheet) is measured with world-space boxes instead.
+    let mut app = app(100_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 40.0));
+    let flat = spawn_model(&mut app, &handle, Vec3::new(-10.0, 0.0, 0.0));
+    let mirrored = spawn_model(&mut app, &handle, Vec3::new(10.0, 0.0, 0.0));
+    app.world_mut().get_mut::<Transform>(flat).unwrap().scale = Vec3::new(1.0, 0.0, 1.0);
+    app.world_mut()
+        .get_mut::<Transform>(mirrored)
+        .unwrap()
+        .scale = Vec3::new(-1.0, 1.0, 1.0);
+    app.update();
+    let coarsest = coarsest(&app, &handle);
+    assert!(
+        triangles(&mut app, flat) > coarsest,
+        "the flattened model gets detail"
+    );
+    assert!(
+        triangles(&mut app, mirrored) > coarsest,
+        "the mirrored model gets detail"
+    );
+}
+
+#[test]
 fn total_stays_within_the_budget_every_frame() {
     const P: u32 = 1_200;
     let mut app = app(P);

@@ -241,6 +241,16 @@ proptest! {
                 }
             }
         }
+        // The walk leaves the same buffers as going straight to its final levels.
+        let mut fresh = RegionCaches::new(&regions);
+        for r in 0..regions.regions().len() {
+            fresh.set_triangle_count(&regions, r, caches.triangle_count(r));
+        }
+        prop_assert_eq!(
+            assemble(&regions, &mut fresh),
+            assemble(&regions, &mut caches),
+            "the buffers depend on the path taken"
+        );
         for r in 0..regions.regions().len() {
             caches.set_triangle_count(&regions, r, usize::MAX);
         }

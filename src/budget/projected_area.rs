@@ -424,7 +424,8 @@ impl ProjectedAreaCamera {
         self.eye.w == 0.0
     }
 
-    /// The centre of projection in world space: `(position, 1)` for a perspective camera,
+    /// The centre of projection in world space (in the model's space for a camera from
+    /// [`for_model`](Self::for_model)): `(position, 1)` for a perspective camera,
     /// `(unit direction towards the viewer, 0)` for an orthographic one.
     #[inline]
     #[must_use]

@@ -431,38 +431,37 @@ fn region_inputs(
         .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
     let affine = transform.affine();
     let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
+    // Model space needs an invertible transform; a flattened model (a zero scale on one
+    // axis, still drawn as a sheet) keeps world-space boxes.
     local.clear();
-    if skinned.is_none() && !full_detail {
+    let in_model = skinned.is_none() && !full_detail && {
         local.extend(cameras.iter().filter_map(|cam| cam.for_model(&affine)));
-        if local.len() < cameras.len() {
-            // A transform without an inverse (a zero scale) shows nothing.
-            local.clear();
-        }
-    }
+        local.len() == cameras.len()
+    };
+    let max_area = |cams: &[ProjectedAreaCamera], obb: &crate::budget::Obb| {
+        cams.iter()
+            .map(|cam| cam.projected_area(obb))
+            .fold(0.0f32, f32::max)
+    };
     // Every region box lies inside the model's box: when that one projects to nothing in
     // every view, so do they (skinned regions move with their bones, so not for them).
     let culled = !full_detail
         && skinned.is_none()
-        && local
-            .iter()
-            .all(|cam| cam.projected_area(&instance.bounds) <= 0.0);
+        && if in_model {
+            max_area(local, &instance.bounds) <= 0.0
+        } else {
+            max_area(cameras, &instance.bounds.transformed(&affine)) <= 0.0
+        };
     for ((r, region), input) in instance.regions.regions().iter().enumerate().zip(out) {
         let area = if full_detail || culled {
             0.0
-        } else if let Some(boxes) = skinned {
-            let obb = boxes
-                .get(r)
-                .copied()
-                .unwrap_or_else(|| instance.obbs[r].transformed(&affine));
-            cameras
-                .iter()
-                .map(|cam| cam.projected_area(&obb))
-                .fold(0.0f32, f32::max)
+        } else if in_model {
+            max_area(local, &instance.obbs[r])
         } else {
-            local
-                .iter()
-                .map(|cam| cam.projected_area(&instance.obbs[r]))
-                .fold(0.0f32, f32::max)
+            let obb = skinned
+                .and_then(|boxes| boxes.get(r).copied())
+                .unwrap_or_else(|| instance.obbs[r].transformed(&affine));
+            max_area(cameras, &obb)
         };
         let area = if area.is_finite() { area } else { 0.0 };
         *input = RegionInput::from_area(
@@ -477,7 +476,7 @@ fn region_inputs(
 
 /// `SelectLod`: each region's cache to its target, in parallel over models on the compute
 /// task pool. Unskinned models also write the index buffers of their dirty regions here
-/// (resolving border corners is the costly part of an update), for `Upload` to swap in;
+/// (copying them is the costly part of an update), for `Upload` to swap in;
 /// skinned models write theirs in `Deform`.
 fn select_lod(mut models: Query<&mut MultiresInstance>, mut stats: ResMut<AslodStats>) {
     let start = Instant::now();
