@@ -48,12 +48,6 @@ impl Default for BuildOptions {
     }
 }
 
-/// Weight of the undiluted local term in a collapse's cost (see `rank`): the worst squared
-/// distance from the target to the planes of the triangles that move. `0.1` took fandisk at 10 %
-/// from 2.27x to 0.75x meshoptimizer's Hausdorff distance and the bunny at 10 % from 1.15x to
-/// 0.90x in `aslod compare`; larger weights cost the cow and spot more than they gained.
-const LOCAL_PLANE_WEIGHT: f64 = 0.1;
-
 /// How a position may take part in collapses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kind {
@@ -119,9 +113,6 @@ struct Scratch {
     /// `mark[p] == stamp` marks position `p` in the current set, without clearing.
     mark: Vec<u32>,
     stamp: u32,
-    /// The planes of the current triangles around the position being ranked: unit normal,
-    /// offset, and the triangle's positions.
-    planes: Vec<(DVec3, f64, [u32; 3])>,
 }
 
 impl Scratch {
@@ -364,31 +355,6 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The planes of the current triangles around position `u`, into `out`.
-    fn planes_into(&self, u: u32, out: &mut Vec<(DVec3, f64, [u32; 3])>) {
-        out.clear();
-        for &t in &self.adj[u as usize] {
-            let corners = self.tris[t as usize].map(|v| self.pos[v as usize]);
-            let [a, b, c] = corners.map(|q| self.points[q as usize]);
-            if let Some(normal) = (b - a).cross(c - a).try_normalize() {
-                out.push((normal, normal.dot(a), corners));
-            }
-        }
-    }
-
-    /// The largest squared distance from `p` to the `planes` of u's triangles that move when
-    /// u collapses onto `w` (those that hold `w` disappear).
-    fn moving_plane_error(planes: &[(DVec3, f64, [u32; 3])], w: u32, p: DVec3) -> f64 {
-        planes
-            .iter()
-            .filter(|(_, _, corners)| !corners.contains(&w))
-            .map(|&(normal, offset, _)| {
-                let d = normal.dot(p) - offset;
-                d * d
-            })
-            .fold(0.0, f64::max)
-    }
-
     /// Collects the distinct neighbour positions of `p` into `out`.
     fn neighbors_into(&self, p: u32, out: &mut Vec<u32>, scratch: &mut Scratch) {
         out.clear();
@@ -586,8 +552,6 @@ impl<'a> Builder<'a> {
         let mut nu = std::mem::take(&mut self.scratch.neighbors);
         let mut scratch = std::mem::take(&mut self.scratch);
         self.neighbors_into(u, &mut nu, &mut scratch);
-        let mut planes = std::mem::take(&mut scratch.planes);
-        self.planes_into(u, &mut planes);
         self.scratch = scratch;
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
@@ -603,19 +567,10 @@ impl<'a> Builder<'a> {
             // The error of moving u onto w, measured against u's planes (everything already
             // merged into u): meshoptimizer's choice, which beat the merged quadric
             // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
-            //
-            // The quadric averages over everything merged into u, so a vertex that absorbed a
-            // large flat face weighs its own curved side almost nothing. The worst distance to
-            // the planes of u's current triangles that move is not diluted, and bounds the
-            // cost from below (scaled by `LOCAL_PLANE_WEIGHT`).
-            let p = self.points[w as usize];
-            let e = qu
-                .error(p)
-                .max(LOCAL_PLANE_WEIGHT * Self::moving_plane_error(&planes, w, p));
+            let e = qu.error(self.points[w as usize]);
             candidates.push((e, w));
         }
         self.scratch.neighbors = nu;
-        self.scratch.planes = planes;
         let order = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
         let chosen = if validate {
             candidates.sort_unstable_by(order);
