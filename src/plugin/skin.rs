@@ -275,12 +275,12 @@ pub(crate) struct SkinState {
 }
 
 impl SkinState {
-    pub(crate) fn new(binding: Arc<SkinBinding>, regions: &RegionMesh) -> Self {
+    /// `initial`: each region's mesh from [`initial_region_mesh`], which both buffers start as.
+    pub(crate) fn new(binding: Arc<SkinBinding>, initial: &[IndexedMesh]) -> Self {
         let joints = binding.joint_count();
-        // Both buffers start as the region mesh does (rigid regions in their bone's space).
-        let region_state = (0..regions.regions().len())
-            .map(|r| {
-                let mesh = initial_region_mesh(&binding, regions, r);
+        let region_state = initial
+            .iter()
+            .map(|mesh| {
                 let n = mesh.positions.len();
                 RegionSkin {
                     positions: mesh.positions.iter().map(|p| p.to_array()).collect(),

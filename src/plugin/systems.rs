@@ -6,7 +6,7 @@ use super::{
     MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
-use crate::budget::{Allocator, ProjectedAreaCamera, RegionInput};
+use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
 use bevy::camera::visibility::NoFrustumCulling;
@@ -99,31 +99,38 @@ fn spawn_regions(
             }
             _ => None,
         };
+        // Skinned regions start as their bind pose (rigid ones in their bone's space): the
+        // state's buffers and the meshes alike.
+        let initial: Option<Vec<_>> = binding.as_ref().map(|b| {
+            (0..regions.regions().len())
+                .map(|r| initial_region_mesh(b, &regions, r))
+                .collect()
+        });
         let state = binding
             .as_ref()
-            .map(|b| SkinState::new(b.clone(), &regions));
+            .zip(initial.as_deref())
+            .map(|(b, meshes)| SkinState::new(b.clone(), meshes));
+        let mut initial = initial.map(Vec::into_iter);
         let mut handles = Vec::with_capacity(regions.regions().len());
         let mut region_entities = Vec::with_capacity(regions.regions().len());
         for (r, region) in regions.regions().iter().enumerate() {
-            let (mesh, parent, rigid) = match &binding {
-                Some(binding) => {
-                    let mesh = initial_region_mesh(binding, &regions, r);
-                    match binding.kinds()[r] {
-                        SkinRegionKind::Rigid { bone } => {
-                            match joints.and_then(|j| j.joints.get(bone as usize)) {
-                                Some(&joint) => (mesh, joint, true),
-                                None => {
-                                    warn!(
-                                        "MultiresModel {entity}: joint {bone} is missing; its rigid region stays at the model"
-                                    );
-                                    (mesh, entity, false)
-                                }
+            let (mesh, parent, rigid) = match (&binding, initial.as_mut().and_then(Iterator::next))
+            {
+                (Some(binding), Some(mesh)) => match binding.kinds()[r] {
+                    SkinRegionKind::Rigid { bone } => {
+                        match joints.and_then(|j| j.joints.get(bone as usize)) {
+                            Some(&joint) => (mesh, joint, true),
+                            None => {
+                                warn!(
+                                    "MultiresModel {entity}: joint {bone} is missing; its rigid region stays at the model"
+                                );
+                                (mesh, entity, false)
                             }
                         }
-                        SkinRegionKind::Deformable { .. } => (mesh, entity, false),
                     }
-                }
-                None => (region.progressive_mesh().mesh().clone(), entity, false),
+                    SkinRegionKind::Deformable { .. } => (mesh, entity, false),
+                },
+                _ => (region.progressive_mesh().mesh().clone(), entity, false),
             };
             // Empty until `Upload` writes the first level.
             let handle = meshes.add(to_bevy_mesh(
@@ -438,7 +445,7 @@ fn region_inputs(
         local.extend(cameras.iter().filter_map(|cam| cam.for_model(&affine)));
         local.len() == cameras.len()
     };
-    let max_area = |cams: &[ProjectedAreaCamera], obb: &crate::budget::Obb| {
+    let max_area = |cams: &[ProjectedAreaCamera], obb: &Obb| {
         cams.iter()
             .map(|cam| cam.projected_area(obb))
             .fold(0.0f32, f32::max)

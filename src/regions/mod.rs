@@ -544,19 +544,11 @@ fn closed_band_cuts(mesh: &IndexedMesh, region_of: &[u32], at: &[u32]) -> Vec<bo
     }
     // Components of two-region triangles joined across such edges.
     let mut parent: Vec<u32> = (0..tris.len() as u32).collect();
-    fn find(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            parent[x as usize] = parent[parent[x as usize] as usize];
-            x = parent[x as usize];
-        }
-        x
-    }
     let mut sorted: Vec<((u32, u32), Crossing)> = edges.into_iter().collect();
     sorted.sort_unstable_by_key(|e| e.0);
     for &(_, Crossing { tris: [t0, t1], .. }) in &sorted {
         if t0 != u32::MAX && t1 != u32::MAX {
-            let (r0, r1) = (find(&mut parent, t0), find(&mut parent, t1));
-            parent[r0.max(r1) as usize] = r0.min(r1);
+            unite(&mut parent, t0, t1);
         }
     }
     // A component is open when one of its edges ends the band; otherwise cut it at its
@@ -594,6 +586,22 @@ fn closed_band_cuts(mesh: &IndexedMesh, region_of: &[u32], at: &[u32]) -> Vec<bo
     (0..region_of.len())
         .map(|v| cut_positions[at[v] as usize])
         .collect()
+}
+
+/// Union-find over `parent` (each entry its parent, roots their own): the root of `x`, with
+/// path halving.
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        parent[x as usize] = parent[parent[x as usize] as usize];
+        x = parent[x as usize];
+    }
+    x
+}
+
+/// Union-find: joins the sets of `a` and `b` under the smaller root.
+fn unite(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    parent[ra.max(rb) as usize] = ra.min(rb);
 }
 
 /// The attributes of `vertices`, in that order, with no triangles.

@@ -1,6 +1,6 @@
 //! Vertex partitions: which region each vertex belongs to.
 
-use super::RegionError;
+use super::{RegionError, find, unite};
 use crate::mesh::{IndexedMesh, weld_positions};
 use glam::Vec3;
 
@@ -237,19 +237,9 @@ fn make_connected(mesh: &IndexedMesh, remap: &[u32], ids: &mut [u32]) {
     for _round in 0..8 {
         // Union-find over edges inside one region.
         let mut parent: Vec<u32> = (0..n as u32).collect();
-        fn find(parent: &mut [u32], mut x: u32) -> u32 {
-            while parent[x as usize] != x {
-                parent[x as usize] = parent[parent[x as usize] as usize];
-                x = parent[x as usize];
-            }
-            x
-        }
         for &(a, b) in &edges {
             if ids[a as usize] == ids[b as usize] {
-                let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
-                if ra != rb {
-                    parent[ra.max(rb) as usize] = ra.min(rb);
-                }
+                unite(&mut parent, a, b);
             }
         }
         let mut size = vec![0usize; n];
