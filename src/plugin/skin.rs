@@ -13,6 +13,7 @@
 //!   way their own region places them (a rigid vertex by its bone alone), converted into the
 //!   drawing region's space, so both sides of a border put a shared vertex at one position.
 
+use super::systems::par_chunks;
 use super::{MultiresError, MultiresMesh};
 use crate::budget::Obb;
 use crate::mesh::{IndexedMesh, weld_positions};
@@ -20,7 +21,6 @@ use crate::multires::BuildOptions;
 use crate::regions::{Partition, RegionCaches, RegionMesh};
 use crate::skin::{Influences, SkinRegionKind, blend, decompose};
 use bevy::prelude::*;
-use bevy::tasks::{ComputeTaskPool, ParallelSliceMut, TaskPool};
 use glam::{Affine3A, Mat3, Mat4, Vec3};
 use std::sync::Arc;
 
@@ -462,20 +462,12 @@ impl Job<'_> {
 /// changed (in parallel over instances), then blend, in parallel over regions, the vertices
 /// of each region whose joints moved or whose buffer changed; both on the compute task pool.
 /// Returns the vertices blended.
-pub(crate) fn deform(
-    mut instances: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)],
-) -> usize {
-    let pool = ComputeTaskPool::get_or_init(TaskPool::default);
-    let refresh = |chunk: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)]| {
+pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)]) -> usize {
+    par_chunks(instances, |chunk| {
         for (caches, regions, skin) in chunk {
             skin.refresh_indices(caches, regions);
         }
-    };
-    if instances.len() > 1 {
-        instances.par_splat_map_mut(pool, None, |_, chunk| refresh(chunk));
-    } else {
-        refresh(instances);
-    }
+    });
 
     let mut jobs: Vec<Job<'_>> = Vec::new();
     for (_, regions, skin) in instances.iter_mut() {
@@ -510,16 +502,10 @@ pub(crate) fn deform(
         }
     }
     let blended: usize = jobs.iter().map(|j| j.region.referenced.len()).sum();
-    if jobs.len() > 1 {
-        jobs.par_splat_map_mut(pool, None, |_, chunk| {
-            for job in chunk {
-                job.run();
-            }
-        });
-    } else {
-        for job in &mut jobs {
+    par_chunks(&mut jobs, |chunk| {
+        for job in chunk {
             job.run();
         }
-    }
+    });
     blended
 }

@@ -11,13 +11,32 @@ use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
 use bevy::camera::visibility::NoFrustumCulling;
 use bevy::diagnostic::Diagnostics;
+use bevy::ecs::system::NonSendMarker;
 use bevy::mesh::Indices;
 use bevy::mesh::VertexAttributeValues;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::tasks::{ComputeTaskPool, ParallelSliceMut, TaskPool};
 use bevy::transform::TransformSystems;
-use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Runs `f` over `items` in chunks on the compute task pool and returns its results, one per
+/// chunk. There are enough chunks for every compute thread and for the calling thread too:
+/// the plugin's heavy systems run on the main thread (they take a [`NonSendMarker`]), which
+/// otherwise only waits for the schedule, and a task-pool scope opened there works through
+/// the chunks alongside the compute threads. Bevy gives the compute pool one thread on a
+/// 2-core machine, so without this the work would use one core of two.
+pub(super) fn par_chunks<T: Send, R: Send + 'static>(
+    items: &mut [T],
+    f: impl Fn(&mut [T]) -> R + Send + Sync,
+) -> Vec<R> {
+    let mut items = items;
+    if items.len() < 2 {
+        return vec![f(items)];
+    }
+    let pool = ComputeTaskPool::get_or_init(TaskPool::default);
+    let size = items.len().div_ceil(4 * (pool.thread_num() + 1)).max(1);
+    items.par_chunk_map_mut(pool, size, |_, chunk| f(chunk))
+}
 
 /// Buffers kept across frames.
 #[derive(Resource, Default)]
@@ -288,6 +307,7 @@ fn allocate(
     mut scratch: ResMut<AslodScratch>,
     mut stats: ResMut<AslodStats>,
     mut diag: Diagnostics,
+    _main_thread: NonSendMarker,
 ) {
     let start = Instant::now();
     let scratch = &mut *scratch;
@@ -361,12 +381,7 @@ fn allocate(
             );
         }
     };
-    if jobs.len() > 1 {
-        let pool = ComputeTaskPool::get_or_init(TaskPool::default);
-        jobs.par_splat_map_mut(pool, None, |_, chunk| fill(chunk));
-    } else {
-        fill(&mut jobs);
-    }
+    par_chunks(&mut jobs, fill);
     stats.models = model_count;
     stats.regions = scratch.inputs.len();
     stats.fixed_cost = fixed_cost;
@@ -485,29 +500,36 @@ fn region_inputs(
 /// task pool. Unskinned models also write the index buffers of their dirty regions here
 /// (copying them is the costly part of an update), for `Upload` to swap in;
 /// skinned models write theirs in `Deform`.
-fn select_lod(mut models: Query<&mut MultiresInstance>, mut stats: ResMut<AslodStats>) {
+fn select_lod(
+    mut models: Query<&mut MultiresInstance>,
+    mut stats: ResMut<AslodStats>,
+    _main_thread: NonSendMarker,
+) {
     let start = Instant::now();
-    let total = AtomicU64::new(0);
-    models.par_iter_mut().for_each(|mut instance| {
-        let instance = &mut *instance;
+    let mut instances: Vec<Mut<MultiresInstance>> = models.iter_mut().collect();
+    let totals = par_chunks(&mut instances, |chunk| {
         let mut triangles = 0u64;
-        for (r, &target) in instance.targets.iter().enumerate() {
-            triangles += instance
-                .caches
-                .set_triangle_count(&instance.regions, r, target as usize)
-                as u64;
-        }
-        if instance.skin.is_none() {
-            for (r, (ready, buffer)) in instance.staged.iter_mut().enumerate() {
-                if instance.caches.is_dirty(r) {
-                    instance.caches.write_indices(&instance.regions, r, buffer);
-                    *ready = true;
+        for instance in chunk {
+            let instance = &mut **instance;
+            for (r, &target) in instance.targets.iter().enumerate() {
+                triangles +=
+                    instance
+                        .caches
+                        .set_triangle_count(&instance.regions, r, target as usize)
+                        as u64;
+            }
+            if instance.skin.is_none() {
+                for (r, (ready, buffer)) in instance.staged.iter_mut().enumerate() {
+                    if instance.caches.is_dirty(r) {
+                        instance.caches.write_indices(&instance.regions, r, buffer);
+                        *ready = true;
+                    }
                 }
             }
         }
-        total.fetch_add(triangles, Ordering::Relaxed);
+        triangles
     });
-    stats.triangles = total.into_inner();
+    stats.triangles = totals.into_iter().sum();
     stats.update_ms = start.elapsed().as_secs_f64() * 1e3;
 }
 
@@ -536,6 +558,7 @@ fn deform(
     mut models: Query<&mut MultiresInstance>,
     mut stats: ResMut<AslodStats>,
     mut diag: Diagnostics,
+    _main_thread: NonSendMarker,
 ) {
     let start = Instant::now();
     let mut skinned: Vec<Mut<MultiresInstance>> =

@@ -16,10 +16,12 @@ pub struct RegionCaches {
     dirty: Vec<bool>,
     /// Scratch: border triangles not to emit, by position in `Region::border`.
     skip: Vec<bool>,
-    /// Scratch: border triangles by hashed position key (high half) and position in
-    /// `Region::border` (low half).
-    keys: Vec<u64>,
-    /// Scratch: the border triangles of one hash, by exact oriented key.
+    /// Scratch: open-addressing set of border triangles (position in `Region::border` + 1,
+    /// 0 empty), by the hash of their sorted positions.
+    table: Vec<u32>,
+    /// Scratch: each border triangle's sorted positions.
+    exact: Vec<[u32; 3]>,
+    /// Scratch: border triangles by exact oriented key, when some share their positions.
     group: Vec<([u32; 3], bool, u32)>,
 }
 
@@ -59,6 +61,34 @@ fn key_hash([x, y, z]: [u32; 3]) -> u32 {
     h ^ (h >> 15)
 }
 
+/// Marks fins in `skip`: among border triangles with the same positions (`group`: oriented
+/// key, winding, position in `Region::border`; sorted here), opposite pairs cancel, and of
+/// what is left one copy stays.
+fn cancel_fins(group: &mut [([u32; 3], bool, u32)], skip: &mut [bool]) {
+    group.sort_unstable();
+    for same in group.chunk_by(|a, b| a.0 == b.0) {
+        if same.len() < 2 {
+            continue;
+        }
+        let forward = same.iter().filter(|k| k.1).count();
+        let pairs = forward.min(same.len() - forward);
+        let mut kept_one = false;
+        let (mut f, mut b) = (0, 0);
+        for &(_, is_forward, i) in same {
+            let cancelled = if is_forward {
+                f += 1;
+                f <= pairs
+            } else {
+                b += 1;
+                b <= pairs
+            };
+            if cancelled || std::mem::replace(&mut kept_one, true) {
+                skip[i as usize] = true;
+            }
+        }
+    }
+}
+
 /// Every triangle without a foreign corner has three corners at distinct positions (checked
 /// in debug builds: `write_indices` copies such triangles without looking).
 fn own_triangles_have_area(data: &super::Region, indices: &[u32]) -> bool {
@@ -84,7 +114,8 @@ impl RegionCaches {
                 .collect(),
             dirty: vec![true; mesh.regions().len()],
             skip: Vec::new(),
-            keys: Vec::new(),
+            table: Vec::new(),
+            exact: Vec::new(),
             group: Vec::new(),
         }
     }
@@ -186,16 +217,11 @@ impl RegionCaches {
     pub fn write_indices(&mut self, mesh: &RegionMesh, region: usize, out: &mut Vec<u32>) -> usize {
         let data = &mesh.regions()[region];
         let cache = &self.caches[region];
-        let indices = cache.indices();
+        let indices = &cache.indices()[..3 * cache.triangle_count()];
         let border = border_triangles(data, cache.triangle_count());
         // Border triangles whose representatives merged: degenerate ones, and "fins" (the
         // same three vertices twice, once each way round) are not emitted. Only border
         // triangles can become either: a region's own steps never create them.
-        let skip = &mut self.skip;
-        skip.clear();
-        skip.resize(border.len(), false);
-        let keys = &mut self.keys;
-        keys.clear();
         let oriented = |t: u32| {
             let t = 3 * t as usize;
             let [a, b, c]: [u32; 3] = indices[t..t + 3].try_into().expect("three corners");
@@ -205,59 +231,73 @@ impl RegionCaches {
                 data.position_of(c),
             ])
         };
+        // One pass with a small open-addressing set of the position triples: degenerate
+        // triangles are marked, and fins are looked for only when two triples are equal
+        // (rare: it takes a neighbour's front folding onto this region's border).
+        let skip = &mut self.skip;
+        skip.clear();
+        skip.resize(border.len(), false);
+        let slots = (2 * border.len()).next_power_of_two().max(16);
+        let mask = slots - 1;
+        let table = &mut self.table;
+        table.clear();
+        table.resize(slots, 0);
+        let exact = &mut self.exact;
+        exact.clear();
+        let (mut skipped, mut repeated) = (false, false);
         for (i, &t) in border.iter().enumerate() {
-            match oriented(t) {
-                Some((key, _)) => keys.push(u64::from(key_hash(key)) << 32 | i as u64),
+            let Some((key, _)) = oriented(t) else {
                 // Two corners at one position (seam copies count as one) make no area.
-                None => skip[i] = true,
-            }
-        }
-        keys.sort_unstable();
-        for run in keys.chunk_by(|a, b| a >> 32 == b >> 32) {
-            if run.len() < 2 {
-                continue; // the common case: no other border triangle has these positions
-            }
-            let group = &mut self.group;
-            group.clear();
-            group.extend(run.iter().filter_map(|&k| {
-                let i = k as u32;
-                oriented(border[i as usize]).map(|(key, forward)| (key, forward, i))
-            }));
-            group.sort_unstable();
-            for same in group.chunk_by(|a, b| a.0 == b.0) {
-                // Opposite pairs cancel; of what is left, one copy stays.
-                let forward = same.iter().filter(|k| k.1).count();
-                let backward = same.len() - forward;
-                let pairs = forward.min(backward);
-                let mut kept_one = false;
-                let (mut f, mut b) = (0, 0);
-                for &(_, is_forward, i) in same {
-                    let cancelled = if is_forward {
-                        f += 1;
-                        f <= pairs
-                    } else {
-                        b += 1;
-                        b <= pairs
-                    };
-                    if cancelled || std::mem::replace(&mut kept_one, true) {
-                        skip[i as usize] = true;
+                skip[i] = true;
+                skipped = true;
+                exact.push([u32::MAX; 3]);
+                continue;
+            };
+            exact.push(key);
+            let mut h = key_hash(key) as usize & mask;
+            loop {
+                match table[h] {
+                    0 => {
+                        table[h] = i as u32 + 1;
+                        break;
                     }
+                    e if exact[e as usize - 1] == key => {
+                        repeated = true;
+                        break;
+                    }
+                    _ => h = (h + 1) & mask,
                 }
             }
         }
-        // Own triangles are copied in runs; only border triangles are checked.
-        out.clear();
-        out.reserve(indices.len());
-        let mut next = 0; // first triangle not yet copied or checked
-        for (&t, &skipped) in border.iter().zip(skip.iter()) {
-            let t = t as usize;
-            out.extend_from_slice(&indices[3 * next..3 * t]);
-            if !skipped {
-                out.extend_from_slice(&indices[3 * t..3 * t + 3]);
-            }
-            next = t + 1;
+        if repeated {
+            skipped = true;
+            self.group.clear();
+            self.group.extend(
+                border
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, &t)| oriented(t).map(|(key, fwd)| (key, fwd, i as u32))),
+            );
+            cancel_fins(&mut self.group, skip);
         }
-        out.extend_from_slice(&indices[3 * next..]);
+        out.clear();
+        if !skipped {
+            // The common case: every active triangle, in one copy.
+            out.extend_from_slice(indices);
+        } else {
+            // Own triangles are copied in runs; skipped border triangles are left out.
+            out.reserve(indices.len());
+            let mut next = 0; // first triangle not yet copied or checked
+            for (&t, &skipped) in border.iter().zip(skip.iter()) {
+                let t = t as usize;
+                out.extend_from_slice(&indices[3 * next..3 * t]);
+                if !skipped {
+                    out.extend_from_slice(&indices[3 * t..3 * t + 3]);
+                }
+                next = t + 1;
+            }
+            out.extend_from_slice(&indices[3 * next..]);
+        }
         debug_assert!(
             own_triangles_have_area(data, indices),
             "a region's own collapses never leave a triangle without area"
@@ -283,5 +323,32 @@ impl RegionCaches {
             *i = global[*i as usize];
         }
         n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cancel_fins;
+
+    #[test]
+    fn fins_cancel_in_pairs_and_copies_keep_one() {
+        let (a, b) = ([1, 2, 3], [4, 5, 6]);
+        // a: forward, backward, forward -> one pair cancels, one stays. b: forward twice ->
+        // one copy stays. [7, 8, 9] alone stays.
+        let mut group = vec![
+            (a, true, 0),
+            (b, true, 1),
+            (a, false, 2),
+            ([7, 8, 9], true, 3),
+            (a, true, 4),
+            (b, true, 5),
+        ];
+        let mut skip = vec![false; 6];
+        cancel_fins(&mut group, &mut skip);
+        assert_eq!(skip.iter().filter(|&&s| s).count(), 3);
+        assert!(skip[2], "the backward copy of a pairs with a forward one");
+        assert!(!skip[0] || !skip[4], "one forward copy of a stays");
+        assert!(skip[1] ^ skip[5], "one copy of b stays");
+        assert!(!skip[3]);
     }
 }
