@@ -225,11 +225,31 @@ fn uploaded_indices_match_the_caches() {
     app.update();
     let world = app.world();
     let instance = world.get::<MultiresInstance>(model).unwrap();
-    for (r, handle) in instance.meshes().iter().enumerate() {
-        let mesh = world.resource::<Assets<Mesh>>().get(handle).unwrap();
+    let regions = world
+        .resource::<Assets<MultiresMesh>>()
+        .get(&handle)
+        .unwrap()
+        .regions()
+        .clone();
+    let mut caches = instance.caches().clone();
+    for (r, mesh) in instance.meshes().iter().enumerate() {
+        let mesh = world.resource::<Assets<Mesh>>().get(mesh).unwrap();
         let written = mesh.indices().unwrap().len() / 3;
         assert!(written <= instance.caches().triangle_count(r));
         assert!(!instance.caches().is_dirty(r), "uploaded regions are clean");
+        // Small regions get 16-bit buffers, holding what the cache writes.
+        let Some(bevy::mesh::Indices::U16(uploaded)) = mesh.indices() else {
+            panic!("region {r}: expected 16-bit indices");
+        };
+        let mut expected = Vec::new();
+        caches.write_indices(&regions, r, &mut expected);
+        assert!(
+            expected
+                .iter()
+                .copied()
+                .eq(uploaded.iter().map(|&i| u32::from(i))),
+            "region {r}: the mesh holds other indices than the cache"
+        );
     }
 }
 

@@ -251,6 +251,13 @@ proptest! {
             assemble(&regions, &mut caches),
             "the buffers depend on the path taken"
         );
+        // 16-bit buffers hold the same indices.
+        for r in 0..regions.regions().len() {
+            let (mut wide, mut narrow) = (Vec::new(), Vec::new());
+            caches.write_indices(&regions, r, &mut wide);
+            caches.write_indices_u16(&regions, r, &mut narrow);
+            prop_assert!(wide.iter().copied().eq(narrow.iter().map(|&i| u32::from(i))));
+        }
         for r in 0..regions.regions().len() {
             caches.set_triangle_count(&regions, r, usize::MAX);
         }

@@ -263,8 +263,9 @@ pub struct MultiresInstance {
     region_entities: Vec<Entity>,
     /// Unskinned models: per region, whether `SelectLod` wrote a new index buffer, and that
     /// buffer, for `Upload` to swap into the region's mesh. After the swap it holds the
-    /// mesh's old buffer, so steady state allocates nothing.
-    staged: Vec<(bool, Vec<u32>)>,
+    /// mesh's old buffer, so steady state allocates nothing. 16-bit wherever the region's
+    /// vertices fit (half the bytes to write, keep and upload).
+    staged: Vec<(bool, bevy::mesh::Indices)>,
 }
 
 impl MultiresInstance {

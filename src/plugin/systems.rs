@@ -186,6 +186,18 @@ fn spawn_regions(
             .iter()
             .map(|r| r.min_triangles() as u32)
             .collect();
+        let staged = regions
+            .regions()
+            .iter()
+            .map(|region| {
+                let buffer = if region.fits_u16() {
+                    Indices::U16(Vec::new())
+                } else {
+                    Indices::U32(Vec::new())
+                };
+                (false, buffer)
+            })
+            .collect();
         commands.entity(entity).insert(MultiresInstance {
             caches: RegionCaches::new(&regions),
             bounds: asset.bounds(),
@@ -194,7 +206,7 @@ fn spawn_regions(
             targets,
             meshes: handles,
             skin: state,
-            staged: vec![(false, Vec::new()); region_entities.len()],
+            staged,
             region_entities,
         });
     }
@@ -521,7 +533,11 @@ fn select_lod(
             if instance.skin.is_none() {
                 for (r, (ready, buffer)) in instance.staged.iter_mut().enumerate() {
                     if instance.caches.is_dirty(r) {
-                        instance.caches.write_indices(&instance.regions, r, buffer);
+                        let (caches, regions) = (&mut instance.caches, &instance.regions);
+                        match buffer {
+                            Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
+                            Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
+                        };
                         *ready = true;
                     }
                 }
@@ -581,15 +597,37 @@ fn deform(
 /// copy, and no allocation in steady state. False, with a warning, when the mesh's data is no
 /// longer in the main world.
 fn swap_indices(mesh: &mut Mesh, buffer: &mut Vec<u32>) -> bool {
+    let mut staged = Indices::U32(std::mem::take(buffer));
+    let swapped = swap_staged(mesh, &mut staged);
+    if let Indices::U32(old) = staged {
+        *buffer = old;
+    }
+    swapped
+}
+
+/// [`swap_indices`] for a staged buffer of either width; `buffer` keeps its width (a buffer of
+/// the other width that comes back from the mesh, its first one, is dropped).
+fn swap_staged(mesh: &mut Mesh, buffer: &mut Indices) -> bool {
+    let narrow = matches!(buffer, Indices::U16(_));
+    let empty = || {
+        if narrow {
+            Indices::U16(Vec::new())
+        } else {
+            Indices::U32(Vec::new())
+        }
+    };
     match mesh.try_indices_mut_option() {
-        Ok(Some(Indices::U32(indices))) => std::mem::swap(indices, buffer),
-        Ok(_) => mesh.insert_indices(Indices::U32(std::mem::take(buffer))),
+        Ok(Some(indices)) => std::mem::swap(indices, buffer),
+        Ok(None) => mesh.insert_indices(std::mem::replace(buffer, empty())),
         Err(_) => {
             warn_once!(
                 "a region mesh's data is no longer in the main world; its LOD is not updated"
             );
             return false;
         }
+    }
+    if matches!(buffer, Indices::U16(_)) != narrow {
+        *buffer = empty();
     }
     true
 }
@@ -659,7 +697,7 @@ fn upload(
             let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) else {
                 continue;
             };
-            if swap_indices(&mut mesh, buffer) {
+            if swap_staged(&mut mesh, buffer) {
                 changed += 1;
             }
         }

@@ -25,6 +25,26 @@ pub struct RegionCaches {
     group: Vec<([u32; 3], bool, u32)>,
 }
 
+/// An index type `write_indices` can write.
+trait Index: Copy {
+    /// Appends `src` to `out`, narrowed to `Self` (the caller checked that it fits).
+    fn extend(out: &mut Vec<Self>, src: &[u32]);
+}
+
+impl Index for u32 {
+    #[inline]
+    fn extend(out: &mut Vec<Self>, src: &[u32]) {
+        out.extend_from_slice(src);
+    }
+}
+
+impl Index for u16 {
+    #[inline]
+    fn extend(out: &mut Vec<Self>, src: &[u32]) {
+        out.extend(src.iter().map(|&v| v as u16));
+    }
+}
+
 /// The triangle's positions sorted, and whether the sort kept its winding; `None` when
 /// degenerate.
 fn oriented_key([a, b, c]: [u32; 3]) -> Option<([u32; 3], bool)> {
@@ -215,6 +235,49 @@ impl RegionCaches {
     /// Panics when `region` is out of range or `mesh` is not the mesh the caches were made
     /// for.
     pub fn write_indices(&mut self, mesh: &RegionMesh, region: usize, out: &mut Vec<u32>) -> usize {
+        self.write(mesh, region, out)
+    }
+
+    /// [`write_indices`](Self::write_indices) with 16-bit indices: half the bytes to copy,
+    /// keep and upload, for regions whose local vertex table
+    /// ([`Region::progressive_mesh`](super::Region::progressive_mesh)) has at most 65,536
+    /// vertices ([`Region::fits_u16`](super::Region::fits_u16)).
+    ///
+    /// ```
+    /// use bevy_aslod::mesh::IndexedMesh;
+    /// use bevy_aslod::multires::BuildOptions;
+    /// use bevy_aslod::regions::{Partition, RegionCaches, RegionMesh};
+    /// use glam::Vec3;
+    ///
+    /// let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::new(1.0, 0.0, 1.0)];
+    /// let mesh = IndexedMesh::new(positions, vec![0, 2, 1, 1, 2, 3]);
+    /// let (partition, _) = Partition::from_ids(&mesh, &[0, 0, 1, 1]).unwrap();
+    /// let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+    /// let mut caches = RegionCaches::new(&regions);
+    /// let (mut wide, mut narrow) = (Vec::new(), Vec::new());
+    /// assert!(regions.regions()[0].fits_u16());
+    /// caches.write_indices(&regions, 0, &mut wide);
+    /// caches.write_indices_u16(&regions, 0, &mut narrow);
+    /// assert_eq!(wide, narrow.iter().map(|&i| u32::from(i)).collect::<Vec<_>>());
+    /// ```
+    ///
+    /// # Panics
+    /// As [`write_indices`](Self::write_indices), and when the region has more than 65,536
+    /// vertices.
+    pub fn write_indices_u16(
+        &mut self,
+        mesh: &RegionMesh,
+        region: usize,
+        out: &mut Vec<u16>,
+    ) -> usize {
+        assert!(
+            mesh.regions()[region].fits_u16(),
+            "region {region} has more than 65,536 vertices: 16-bit indices cannot address them"
+        );
+        self.write(mesh, region, out)
+    }
+
+    fn write<I: Index>(&mut self, mesh: &RegionMesh, region: usize, out: &mut Vec<I>) -> usize {
         let data = &mesh.regions()[region];
         let cache = &self.caches[region];
         let indices = &cache.indices()[..3 * cache.triangle_count()];
@@ -283,20 +346,20 @@ impl RegionCaches {
         out.clear();
         if !skipped {
             // The common case: every active triangle, in one copy.
-            out.extend_from_slice(indices);
+            I::extend(out, indices);
         } else {
             // Own triangles are copied in runs; skipped border triangles are left out.
             out.reserve(indices.len());
             let mut next = 0; // first triangle not yet copied or checked
             for (&t, &skipped) in border.iter().zip(skip.iter()) {
                 let t = t as usize;
-                out.extend_from_slice(&indices[3 * next..3 * t]);
+                I::extend(out, &indices[3 * next..3 * t]);
                 if !skipped {
-                    out.extend_from_slice(&indices[3 * t..3 * t + 3]);
+                    I::extend(out, &indices[3 * t..3 * t + 3]);
                 }
                 next = t + 1;
             }
-            out.extend_from_slice(&indices[3 * next..]);
+            I::extend(out, &indices[3 * next..]);
         }
         debug_assert!(
             own_triangles_have_area(data, indices),

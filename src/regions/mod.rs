@@ -163,6 +163,14 @@ impl Region {
         }
     }
 
+    /// True when 16-bit indices can address the region's local vertex table (at most 65,536
+    /// vertices): see [`RegionCaches::write_indices_u16`].
+    #[inline]
+    #[must_use]
+    pub fn fits_u16(&self) -> bool {
+        self.mesh.mesh().vertex_count() <= 1 << 16
+    }
+
     /// The region's progressive sequence. Its vertex table is local: see
     /// [`global_vertices`](Self::global_vertices).
     #[inline]
