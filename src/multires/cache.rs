@@ -9,9 +9,13 @@ use super::ProgressiveMesh;
 /// either direction, with no search. The cache does not borrow the mesh, so many caches can
 /// share one [`ProgressiveMesh`] (for example behind an `Arc`); pass the same mesh to every
 /// call.
+///
+/// The index type `I` is `u32` by default; [`with_index_type`](Self::with_index_type) makes a
+/// `u16` cache for meshes of at most 65,536 vertices, which keeps half the bytes per instance
+/// and moves and copies half as much memory.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct PolygonCache {
-    indices: Vec<u32>,
+pub struct PolygonCache<I: CacheIndex = u32> {
+    indices: Vec<I>,
     level: usize,
     triangles: usize,
     corner_cursor: usize,
@@ -19,12 +23,81 @@ pub struct PolygonCache {
     changed: bool,
 }
 
+/// An index type a [`PolygonCache`] can hold: `u32` (any mesh), or `u16` (meshes of at
+/// most 65,536 vertices).
+pub trait CacheIndex:
+    Copy + Eq + Into<u32> + Send + Sync + std::fmt::Debug + sealed::Sealed + 'static
+{
+    /// The most vertices it can address.
+    const MAX_VERTICES: u64;
+
+    /// `v` narrowed to `Self`; callers check that it fits.
+    #[doc(hidden)]
+    fn from_u32(v: u32) -> Self;
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for u16 {}
+    impl Sealed for u32 {}
+}
+
+impl CacheIndex for u16 {
+    const MAX_VERTICES: u64 = 1 << 16;
+
+    #[inline]
+    fn from_u32(v: u32) -> Self {
+        v as u16
+    }
+}
+
+impl CacheIndex for u32 {
+    const MAX_VERTICES: u64 = 1 << 32;
+
+    #[inline]
+    fn from_u32(v: u32) -> Self {
+        v
+    }
+}
+
 impl PolygonCache {
     /// A cache at full detail.
     #[must_use]
     pub fn new(mesh: &ProgressiveMesh) -> Self {
+        Self::full(mesh)
+    }
+}
+
+impl<I: CacheIndex> PolygonCache<I> {
+    /// A cache at full detail holding indices of type `I`, or `None` when the mesh has more
+    /// vertices than `I` can address.
+    ///
+    /// ```
+    /// use bevy_aslod::mesh::IndexedMesh;
+    /// use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+    /// use glam::Vec3;
+    ///
+    /// let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+    /// let mesh = IndexedMesh::new(positions, vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3]);
+    /// let pm = ProgressiveMesh::build(&mesh, &BuildOptions::default()).unwrap();
+    /// let mut narrow = PolygonCache::<u16>::with_index_type(&pm).expect("4 vertices fit");
+    /// let mut wide = PolygonCache::new(&pm);
+    /// narrow.set_triangle_count(&pm, 2);
+    /// wide.set_triangle_count(&pm, 2);
+    /// assert!(narrow.indices().iter().map(|&i| u32::from(i)).eq(wide.indices().iter().copied()));
+    /// ```
+    #[must_use]
+    pub fn with_index_type(mesh: &ProgressiveMesh) -> Option<Self> {
+        (mesh.mesh().vertex_count() as u64 <= I::MAX_VERTICES).then(|| Self::full(mesh))
+    }
+
+    fn full(mesh: &ProgressiveMesh) -> Self {
         Self {
-            indices: mesh.full_indices().to_vec(),
+            indices: mesh
+                .full_indices()
+                .iter()
+                .map(|&v| I::from_u32(v))
+                .collect(),
             level: 0,
             triangles: mesh.max_triangles(),
             corner_cursor: 0,
@@ -37,13 +110,13 @@ impl PolygonCache {
     /// vertex table.
     #[inline]
     #[must_use]
-    pub fn indices(&self) -> &[u32] {
+    pub fn indices(&self) -> &[I] {
         &self.indices[..3 * self.triangles]
     }
 
     /// The whole index buffer, for regions to resolve their foreign corners in place.
     #[inline]
-    pub(crate) fn indices_mut(&mut self) -> &mut [u32] {
+    pub(crate) fn indices_mut(&mut self) -> &mut [I] {
         &mut self.indices
     }
 
@@ -84,7 +157,7 @@ impl PolygonCache {
         let corners = &mesh.corners[self.corner_cursor..][..step.corners as usize];
         let pairs = &mesh.pairs[self.pair_cursor..][..step.pairs as usize];
         for &c in corners {
-            self.indices[(c >> 1) as usize] = pairs[(c & 1) as usize][1];
+            self.indices[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][1]);
         }
         self.corner_cursor += step.corners as usize;
         self.pair_cursor += step.pairs as usize;
@@ -106,7 +179,7 @@ impl PolygonCache {
         let corners = &mesh.corners[self.corner_cursor..][..step.corners as usize];
         let pairs = &mesh.pairs[self.pair_cursor..][..step.pairs as usize];
         for &c in corners {
-            self.indices[(c >> 1) as usize] = pairs[(c & 1) as usize][0];
+            self.indices[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][0]);
         }
         self.triangles += step.removed as usize;
         self.level -= 1;
@@ -129,7 +202,7 @@ impl PolygonCache {
             let (nc, np) = (step.corners as usize, step.pairs as usize);
             let pair = &pairs[pc..pc + np];
             for &c in &corners[cc..cc + nc] {
-                indices[(c >> 1) as usize] = pair[(c & 1) as usize][1];
+                indices[(c >> 1) as usize] = I::from_u32(pair[(c & 1) as usize][1]);
             }
             (cc, pc) = (cc + nc, pc + np);
             count -= step.removed as usize;
@@ -141,7 +214,7 @@ impl PolygonCache {
             (cc, pc) = (cc - nc, pc - np);
             let pair = &pairs[pc..pc + np];
             for &c in &corners[cc..cc + nc] {
-                indices[(c >> 1) as usize] = pair[(c & 1) as usize][0];
+                indices[(c >> 1) as usize] = I::from_u32(pair[(c & 1) as usize][0]);
             }
             count += step.removed as usize;
             level -= 1;

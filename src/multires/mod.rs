@@ -48,7 +48,7 @@ mod heap;
 mod quadric;
 
 pub use build::BuildOptions;
-pub use cache::PolygonCache;
+pub use cache::{CacheIndex, PolygonCache};
 
 use crate::mesh::{IndexedMesh, MeshError};
 

@@ -1,48 +1,91 @@
 //! Per-instance state of a [`RegionMesh`]: one polygon cache per region.
 
 use super::RegionMesh;
-use crate::multires::PolygonCache;
+use crate::multires::{CacheIndex, PolygonCache, ProgressiveMesh};
 
 /// One instance's levels of every region of a [`RegionMesh`].
 ///
-/// Each region has its own [`PolygonCache`] and triangle count. Changing a region's level
+/// Each region has its own [`PolygonCache`] (16-bit where its vertices fit, see
+/// [`Region::fits_u16`](super::Region::fits_u16)) and triangle count. Changing a region's level
 /// marks it dirty, and also the neighbours whose border corners held a vertex that the
 /// crossed steps removed or brought back: those corners get their new representatives
 /// there and then. [`write_indices`](Self::write_indices) writes a dirty region's index
 /// buffer, ready to render by itself.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RegionCaches {
-    caches: Vec<PolygonCache>,
+    caches: Vec<Cache>,
     dirty: Vec<bool>,
-    /// Scratch: border triangles not to emit, by position in `Region::border`.
+    scratch: Scratch,
+}
+
+/// One region's cache, in the narrowest index type that fits.
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum Cache {
+    Narrow(PolygonCache<u16>),
+    Wide(PolygonCache<u32>),
+}
+
+impl Cache {
+    fn new(mesh: &ProgressiveMesh) -> Self {
+        match PolygonCache::with_index_type(mesh) {
+            Some(narrow) => Self::Narrow(narrow),
+            None => Self::Wide(PolygonCache::new(mesh)),
+        }
+    }
+
+    #[inline]
+    fn triangle_count(&self) -> usize {
+        match self {
+            Self::Narrow(c) => c.triangle_count(),
+            Self::Wide(c) => c.triangle_count(),
+        }
+    }
+
+    #[inline]
+    fn level(&self) -> usize {
+        match self {
+            Self::Narrow(c) => c.level(),
+            Self::Wide(c) => c.level(),
+        }
+    }
+
+    #[inline]
+    fn set_triangle_count(&mut self, mesh: &ProgressiveMesh, triangles: usize) -> usize {
+        match self {
+            Self::Narrow(c) => c.set_triangle_count(mesh, triangles),
+            Self::Wide(c) => c.set_triangle_count(mesh, triangles),
+        }
+    }
+
+    /// Sets one corner (a local vertex of the region, which fits the cache's type).
+    #[inline]
+    fn set_corner(&mut self, corner: usize, vertex: u32) {
+        match self {
+            Self::Narrow(c) => c.indices_mut()[corner] = u16::from_u32(vertex),
+            Self::Wide(c) => c.indices_mut()[corner] = vertex,
+        }
+    }
+}
+
+/// Buffers `write_indices` reuses.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+struct Scratch {
+    /// Border triangles not to emit, by position in `Region::border`.
     skip: Vec<bool>,
-    /// Scratch: open-addressing set of border triangles (position in `Region::border` + 1,
+    /// Open-addressing set of border triangles (position in `Region::border` + 1,
     /// 0 empty), by the hash of their sorted positions.
     table: Vec<u32>,
-    /// Scratch: each border triangle's sorted positions.
+    /// Each border triangle's sorted positions.
     exact: Vec<[u32; 3]>,
-    /// Scratch: border triangles by exact oriented key, when some share their positions.
+    /// Border triangles by exact oriented key, when some share their positions.
     group: Vec<([u32; 3], bool, u32)>,
 }
 
-/// An index type `write_indices` can write.
-trait Index: Copy {
-    /// Appends `src` to `out`, narrowed to `Self` (the caller checked that it fits).
-    fn extend(out: &mut Vec<Self>, src: &[u32]);
-}
-
-impl Index for u32 {
-    #[inline]
-    fn extend(out: &mut Vec<Self>, src: &[u32]) {
-        out.extend_from_slice(src);
-    }
-}
-
-impl Index for u16 {
-    #[inline]
-    fn extend(out: &mut Vec<Self>, src: &[u32]) {
-        out.extend(src.iter().map(|&v| v as u16));
-    }
+/// Appends `src` to `out`, converted (a plain copy when the types agree; the caller checked
+/// that narrowing fits).
+#[inline]
+fn extend<I: CacheIndex, J: CacheIndex>(out: &mut Vec<I>, src: &[J]) {
+    out.extend(src.iter().map(|&v| I::from_u32(v.into())));
 }
 
 /// The triangle's positions sorted, and whether the sort kept its winding; `None` when
@@ -109,15 +152,106 @@ fn cancel_fins(group: &mut [([u32; 3], bool, u32)], skip: &mut [bool]) {
     }
 }
 
+impl Scratch {
+    /// The region's active triangles `indices` into `out`, less degenerate border triangles
+    /// and fins.
+    fn write<I: CacheIndex, J: CacheIndex>(
+        &mut self,
+        data: &super::Region,
+        indices: &[J],
+        out: &mut Vec<I>,
+    ) {
+        let border = border_triangles(data, indices.len() / 3);
+        // Border triangles whose representatives merged: degenerate ones, and "fins" (the
+        // same three vertices twice, once each way round) are not emitted. Only border
+        // triangles can become either: a region's own steps never create them.
+        let oriented = |t: u32| {
+            let t = 3 * t as usize;
+            oriented_key([0, 1, 2].map(|k| data.position_of(indices[t + k].into())))
+        };
+        // One pass with a small open-addressing set of the position triples: degenerate
+        // triangles are marked, and fins are looked for only when two triples are equal
+        // (rare: it takes a neighbour's front folding onto this region's border).
+        let skip = &mut self.skip;
+        skip.clear();
+        skip.resize(border.len(), false);
+        let slots = (2 * border.len()).next_power_of_two().max(16);
+        let mask = slots - 1;
+        let table = &mut self.table;
+        table.clear();
+        table.resize(slots, 0);
+        let exact = &mut self.exact;
+        exact.clear();
+        let (mut skipped, mut repeated) = (false, false);
+        for (i, &t) in border.iter().enumerate() {
+            let Some((key, _)) = oriented(t) else {
+                // Two corners at one position (seam copies count as one) make no area.
+                skip[i] = true;
+                skipped = true;
+                exact.push([u32::MAX; 3]);
+                continue;
+            };
+            exact.push(key);
+            let mut h = key_hash(key) as usize & mask;
+            loop {
+                match table[h] {
+                    0 => {
+                        table[h] = i as u32 + 1;
+                        break;
+                    }
+                    e if exact[e as usize - 1] == key => {
+                        repeated = true;
+                        break;
+                    }
+                    _ => h = (h + 1) & mask,
+                }
+            }
+        }
+        if repeated {
+            skipped = true;
+            self.group.clear();
+            self.group.extend(
+                border
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, &t)| oriented(t).map(|(key, fwd)| (key, fwd, i as u32))),
+            );
+            cancel_fins(&mut self.group, skip);
+        }
+        out.clear();
+        if !skipped {
+            // The common case: every active triangle, in one copy.
+            extend(out, indices);
+        } else {
+            // Own triangles are copied in runs; skipped border triangles are left out.
+            out.reserve(indices.len());
+            let mut next = 0; // first triangle not yet copied or checked
+            for (&t, &skipped) in border.iter().zip(skip.iter()) {
+                let t = t as usize;
+                extend(out, &indices[3 * next..3 * t]);
+                if !skipped {
+                    extend(out, &indices[3 * t..3 * t + 3]);
+                }
+                next = t + 1;
+            }
+            extend(out, &indices[3 * next..]);
+        }
+        debug_assert!(
+            own_triangles_have_area(data, indices),
+            "a region's own collapses never leave a triangle without area"
+        );
+    }
+}
+
 /// Every triangle without a foreign corner has three corners at distinct positions (checked
 /// in debug builds: `write_indices` copies such triangles without looking).
-fn own_triangles_have_area(data: &super::Region, indices: &[u32]) -> bool {
+fn own_triangles_have_area<J: CacheIndex>(data: &super::Region, indices: &[J]) -> bool {
     let border: std::collections::HashSet<u32> = border_triangles(data, indices.len() / 3)
         .iter()
         .copied()
         .collect();
     indices.chunks_exact(3).enumerate().all(|(t, tri)| {
-        let [a, b, c] = [0, 1, 2].map(|k| data.position_of(tri[k]));
+        let [a, b, c] = [0, 1, 2].map(|k| data.position_of(tri[k].into()));
         border.contains(&(t as u32)) || (a != b && b != c && a != c)
     })
 }
@@ -127,16 +261,9 @@ impl RegionCaches {
     #[must_use]
     pub fn new(mesh: &RegionMesh) -> Self {
         Self {
-            caches: mesh
-                .regions()
-                .iter()
-                .map(|r| PolygonCache::new(&r.mesh))
-                .collect(),
+            caches: mesh.regions().iter().map(|r| Cache::new(&r.mesh)).collect(),
             dirty: vec![true; mesh.regions().len()],
-            skip: Vec::new(),
-            table: Vec::new(),
-            exact: Vec::new(),
-            group: Vec::new(),
+            scratch: Scratch::default(),
         }
     }
 
@@ -147,14 +274,15 @@ impl RegionCaches {
         self.caches.len()
     }
 
-    /// A region's cache.
+    /// A region's level, as in [`PolygonCache::level`]: `0` is full detail, each level one
+    /// collapse coarser.
     ///
     /// # Panics
     /// Panics when `region` is out of range.
     #[inline]
     #[must_use]
-    pub fn cache(&self, region: usize) -> &PolygonCache {
-        &self.caches[region]
+    pub fn level(&self, region: usize) -> usize {
+        self.caches[region].level()
     }
 
     /// Triangles of a region at its current level (border triangles that became degenerate
@@ -171,7 +299,7 @@ impl RegionCaches {
     /// Sum of [`triangle_count`](Self::triangle_count) over all regions.
     #[must_use]
     pub fn total_triangles(&self) -> usize {
-        self.caches.iter().map(PolygonCache::triangle_count).sum()
+        self.caches.iter().map(Cache::triangle_count).sum()
     }
 
     /// True when the region's index buffer must be written again.
@@ -212,13 +340,13 @@ impl RegionCaches {
         if after > before {
             // Coarser: each corner ends at the `after` of the last step it passes.
             for e in &events[first(before)..first(after)] {
-                self.caches[e.region as usize].indices_mut()[e.corner as usize] = e.after;
+                self.caches[e.region as usize].set_corner(e.corner as usize, e.after);
                 self.dirty[e.region as usize] = true;
             }
         } else {
             // Finer: each corner ends at the `before` of the first step it passes back.
             for e in events[first(after)..first(before)].iter().rev() {
-                self.caches[e.region as usize].indices_mut()[e.corner as usize] = e.before;
+                self.caches[e.region as usize].set_corner(e.corner as usize, e.before);
                 self.dirty[e.region as usize] = true;
             }
         }
@@ -277,94 +405,18 @@ impl RegionCaches {
         self.write(mesh, region, out)
     }
 
-    fn write<I: Index>(&mut self, mesh: &RegionMesh, region: usize, out: &mut Vec<I>) -> usize {
+    fn write<I: CacheIndex>(
+        &mut self,
+        mesh: &RegionMesh,
+        region: usize,
+        out: &mut Vec<I>,
+    ) -> usize {
         let data = &mesh.regions()[region];
-        let cache = &self.caches[region];
-        let indices = &cache.indices()[..3 * cache.triangle_count()];
-        let border = border_triangles(data, cache.triangle_count());
-        // Border triangles whose representatives merged: degenerate ones, and "fins" (the
-        // same three vertices twice, once each way round) are not emitted. Only border
-        // triangles can become either: a region's own steps never create them.
-        let oriented = |t: u32| {
-            let t = 3 * t as usize;
-            let [a, b, c]: [u32; 3] = indices[t..t + 3].try_into().expect("three corners");
-            oriented_key([
-                data.position_of(a),
-                data.position_of(b),
-                data.position_of(c),
-            ])
-        };
-        // One pass with a small open-addressing set of the position triples: degenerate
-        // triangles are marked, and fins are looked for only when two triples are equal
-        // (rare: it takes a neighbour's front folding onto this region's border).
-        let skip = &mut self.skip;
-        skip.clear();
-        skip.resize(border.len(), false);
-        let slots = (2 * border.len()).next_power_of_two().max(16);
-        let mask = slots - 1;
-        let table = &mut self.table;
-        table.clear();
-        table.resize(slots, 0);
-        let exact = &mut self.exact;
-        exact.clear();
-        let (mut skipped, mut repeated) = (false, false);
-        for (i, &t) in border.iter().enumerate() {
-            let Some((key, _)) = oriented(t) else {
-                // Two corners at one position (seam copies count as one) make no area.
-                skip[i] = true;
-                skipped = true;
-                exact.push([u32::MAX; 3]);
-                continue;
-            };
-            exact.push(key);
-            let mut h = key_hash(key) as usize & mask;
-            loop {
-                match table[h] {
-                    0 => {
-                        table[h] = i as u32 + 1;
-                        break;
-                    }
-                    e if exact[e as usize - 1] == key => {
-                        repeated = true;
-                        break;
-                    }
-                    _ => h = (h + 1) & mask,
-                }
-            }
+        let scratch = &mut self.scratch;
+        match &self.caches[region] {
+            Cache::Narrow(cache) => scratch.write(data, cache.indices(), out),
+            Cache::Wide(cache) => scratch.write(data, cache.indices(), out),
         }
-        if repeated {
-            skipped = true;
-            self.group.clear();
-            self.group.extend(
-                border
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(i, &t)| oriented(t).map(|(key, fwd)| (key, fwd, i as u32))),
-            );
-            cancel_fins(&mut self.group, skip);
-        }
-        out.clear();
-        if !skipped {
-            // The common case: every active triangle, in one copy.
-            I::extend(out, indices);
-        } else {
-            // Own triangles are copied in runs; skipped border triangles are left out.
-            out.reserve(indices.len());
-            let mut next = 0; // first triangle not yet copied or checked
-            for (&t, &skipped) in border.iter().zip(skip.iter()) {
-                let t = t as usize;
-                I::extend(out, &indices[3 * next..3 * t]);
-                if !skipped {
-                    I::extend(out, &indices[3 * t..3 * t + 3]);
-                }
-                next = t + 1;
-            }
-            I::extend(out, &indices[3 * next..]);
-        }
-        debug_assert!(
-            own_triangles_have_area(data, indices),
-            "a region's own collapses never leave a triangle without area"
-        );
         self.dirty[region] = false;
         out.len() / 3
     }
@@ -391,7 +443,62 @@ impl RegionCaches {
 
 #[cfg(test)]
 mod tests {
-    use super::cancel_fins;
+    use super::{Cache, RegionCaches, cancel_fins};
+    use crate::mesh::IndexedMesh;
+    use crate::multires::{BuildOptions, PolygonCache};
+    use crate::regions::{GridPlane, Partition, RegionMesh};
+    use glam::Vec3;
+
+    /// 32-bit and 16-bit caches move and write alike (regions of more than 65,536 vertices
+    /// get 32-bit ones; here they are forced on a small mesh).
+    #[test]
+    fn wide_and_narrow_caches_agree() {
+        let n = 17u32;
+        let mut positions = Vec::new();
+        for z in 0..n {
+            for x in 0..n {
+                let y = ((x * 7 + z * 13) % 5) as f32 * 0.1;
+                positions.push(Vec3::new(x as f32, y, z as f32));
+            }
+        }
+        let mut indices = Vec::new();
+        for z in 0..n - 1 {
+            for x in 0..n - 1 {
+                let i = z * n + x;
+                indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
+            }
+        }
+        let mesh = IndexedMesh::new(positions, indices);
+        let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
+        let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+        let mut narrow = RegionCaches::new(&regions);
+        assert!(narrow.caches.iter().all(|c| matches!(c, Cache::Narrow(_))));
+        let mut wide = narrow.clone();
+        wide.caches = regions
+            .regions()
+            .iter()
+            .map(|r| Cache::Wide(PolygonCache::new(&r.mesh)))
+            .collect();
+        let mut seed = 0x2545_f491_u64;
+        for _ in 0..400 {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            let r = (seed >> 33) as usize % regions.regions().len();
+            let target = (seed >> 20) as usize % (regions.regions()[r].max_triangles() + 1);
+            assert_eq!(
+                narrow.set_triangle_count(&regions, r, target),
+                wide.set_triangle_count(&regions, r, target)
+            );
+            for r in 0..regions.regions().len() {
+                assert_eq!(narrow.is_dirty(r), wide.is_dirty(r));
+                let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
+                narrow.write_indices(&regions, r, &mut a);
+                wide.write_indices(&regions, r, &mut b);
+                wide.write_indices_u16(&regions, r, &mut c);
+                assert_eq!(a, b, "region {r}");
+                assert!(a.iter().copied().eq(c.iter().map(|&i| u32::from(i))));
+            }
+        }
+    }
 
     #[test]
     fn fins_cancel_in_pairs_and_copies_keep_one() {
