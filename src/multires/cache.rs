@@ -11,7 +11,7 @@ use super::ProgressiveMesh;
 /// call.
 ///
 /// The index type `I` is `u32` by default; [`with_index_type`](Self::with_index_type) makes a
-/// `u16` cache for meshes of at most 65,536 vertices, which keeps half the bytes per instance
+/// `u16` cache for meshes of at most 65,535 vertices, which keeps half the bytes per instance
 /// and moves and copies half as much memory.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PolygonCache<I: CacheIndex = u32> {
@@ -24,7 +24,8 @@ pub struct PolygonCache<I: CacheIndex = u32> {
 }
 
 /// An index type a [`PolygonCache`] can hold: `u32` (any mesh), or `u16` (meshes of at
-/// most 65,536 vertices).
+/// most 65,535 vertices: index `0xFFFF` is left unused, since Metal and WebGL read it as a
+/// primitive restart even in triangle lists).
 pub trait CacheIndex:
     Copy + Eq + Into<u32> + Send + Sync + std::fmt::Debug + sealed::Sealed + 'static
 {
@@ -43,10 +44,14 @@ mod sealed {
 }
 
 impl CacheIndex for u16 {
-    const MAX_VERTICES: u64 = 1 << 16;
+    const MAX_VERTICES: u64 = u16::MAX as u64;
 
     #[inline]
     fn from_u32(v: u32) -> Self {
+        debug_assert!(
+            v < u32::from(u16::MAX),
+            "index {v} does not fit a 16-bit cache"
+        );
         v as u16
     }
 }
@@ -191,6 +196,10 @@ impl<I: CacheIndex> PolygonCache<I> {
     /// mesh) and returns the triangle count reached.
     ///
     /// The cost is proportional to the number of levels crossed.
+    ///
+    /// # Panics
+    /// May panic when `mesh` is not the mesh the cache was made for (debug builds also check
+    /// that a 16-bit cache's indices fit).
     pub fn set_triangle_count(&mut self, mesh: &ProgressiveMesh, triangles: usize) -> usize {
         // The walk keeps its cursors in locals: one step is a handful of stores.
         let (steps, corners, pairs) = (&mesh.steps[..], &mesh.corners[..], &mesh.pairs[..]);

@@ -145,9 +145,12 @@ pub enum AslodSystems {
     /// Spawns region children for new models. Before [`TransformSystems::Propagate`].
     Spawn,
     /// Splits the budget among all regions in view. After [`TransformSystems::Propagate`]
-    /// (needs world transforms) and camera updates.
+    /// (needs world transforms) and camera updates. Runs on the main thread, which works
+    /// through its parallel loop alongside the compute pool (so it does not overlap the app's
+    /// other non-`Send` systems); likewise `SelectLod` and `Deform`.
     Allocate,
-    /// Moves each region's polygon cache to its allocated count. After `Allocate`.
+    /// Moves each region's polygon cache to its allocated count and writes the index buffers
+    /// that changed. After `Allocate`.
     SelectLod,
     /// Blends the cached vertices of skinned regions. After `SelectLod`.
     Deform,

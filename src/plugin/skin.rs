@@ -460,7 +460,8 @@ impl Job<'_> {
 
 /// `Deform` for every skinned instance: refresh the index buffers of regions whose cache
 /// changed (in parallel over instances), then blend, in parallel over regions, the vertices
-/// of each region whose joints moved or whose buffer changed; both on the compute task pool.
+/// of each region whose joints moved or whose buffer changed; both on the compute task pool
+/// and the calling thread.
 /// Returns the vertices blended.
 pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)]) -> usize {
     par_chunks(instances, |chunk| {

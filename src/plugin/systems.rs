@@ -189,14 +189,7 @@ fn spawn_regions(
         let staged = regions
             .regions()
             .iter()
-            .map(|region| {
-                let buffer = if region.fits_u16() {
-                    Indices::U16(Vec::new())
-                } else {
-                    Indices::U32(Vec::new())
-                };
-                (false, buffer)
-            })
+            .map(|region| (false, empty_indices(region.fits_u16())))
             .collect();
         commands.entity(entity).insert(MultiresInstance {
             caches: RegionCaches::new(&regions),
@@ -609,16 +602,9 @@ fn swap_indices(mesh: &mut Mesh, buffer: &mut Vec<u32>) -> bool {
 /// the other width that comes back from the mesh, its first one, is dropped).
 fn swap_staged(mesh: &mut Mesh, buffer: &mut Indices) -> bool {
     let narrow = matches!(buffer, Indices::U16(_));
-    let empty = || {
-        if narrow {
-            Indices::U16(Vec::new())
-        } else {
-            Indices::U32(Vec::new())
-        }
-    };
     match mesh.try_indices_mut_option() {
         Ok(Some(indices)) => std::mem::swap(indices, buffer),
-        Ok(None) => mesh.insert_indices(std::mem::replace(buffer, empty())),
+        Ok(None) => mesh.insert_indices(std::mem::replace(buffer, empty_indices(narrow))),
         Err(_) => {
             warn_once!(
                 "a region mesh's data is no longer in the main world; its LOD is not updated"
@@ -627,9 +613,18 @@ fn swap_staged(mesh: &mut Mesh, buffer: &mut Indices) -> bool {
         }
     }
     if matches!(buffer, Indices::U16(_)) != narrow {
-        *buffer = empty();
+        *buffer = empty_indices(narrow);
     }
     true
+}
+
+/// An empty index buffer, 16-bit when `narrow`.
+fn empty_indices(narrow: bool) -> Indices {
+    if narrow {
+        Indices::U16(Vec::new())
+    } else {
+        Indices::U32(Vec::new())
+    }
 }
 
 /// Writes what `Deform` produced for one skinned instance into its region meshes: index

@@ -11,12 +11,22 @@ use crate::multires::{CacheIndex, PolygonCache, ProgressiveMesh};
 /// crossed steps removed or brought back: those corners get their new representatives
 /// there and then. [`write_indices`](Self::write_indices) writes a dirty region's index
 /// buffer, ready to render by itself.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub struct RegionCaches {
     caches: Vec<Cache>,
     dirty: Vec<bool>,
     scratch: Scratch,
 }
+
+/// Equal when every region is at the same level with the same buffer and dirty flag (scratch
+/// space does not count).
+impl PartialEq for RegionCaches {
+    fn eq(&self, other: &Self) -> bool {
+        self.caches == other.caches && self.dirty == other.dirty
+    }
+}
+
+impl Eq for RegionCaches {}
 
 /// One region's cache, in the narrowest index type that fits.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -75,7 +85,8 @@ struct Scratch {
     /// Open-addressing set of border triangles (position in `Region::border` + 1,
     /// 0 empty), by the hash of their sorted positions.
     table: Vec<u32>,
-    /// Each border triangle's sorted positions.
+    /// Each border triangle's sorted positions (`[u32::MAX; 3]` for a degenerate one, which
+    /// is never put in `table`).
     exact: Vec<[u32; 3]>,
     /// Border triangles by exact oriented key, when some share their positions.
     group: Vec<([u32; 3], bool, u32)>,
@@ -226,10 +237,10 @@ impl Scratch {
             // Own triangles are copied in runs; skipped border triangles are left out.
             out.reserve(indices.len());
             let mut next = 0; // first triangle not yet copied or checked
-            for (&t, &skipped) in border.iter().zip(skip.iter()) {
+            for (&t, &left_out) in border.iter().zip(skip.iter()) {
                 let t = t as usize;
                 extend(out, &indices[3 * next..3 * t]);
-                if !skipped {
+                if !left_out {
                     extend(out, &indices[3 * t..3 * t + 3]);
                 }
                 next = t + 1;
@@ -368,7 +379,7 @@ impl RegionCaches {
 
     /// [`write_indices`](Self::write_indices) with 16-bit indices: half the bytes to copy,
     /// keep and upload, for regions whose local vertex table
-    /// ([`Region::progressive_mesh`](super::Region::progressive_mesh)) has at most 65,536
+    /// ([`Region::progressive_mesh`](super::Region::progressive_mesh)) has at most 65,535
     /// vertices ([`Region::fits_u16`](super::Region::fits_u16)).
     ///
     /// ```
@@ -390,7 +401,7 @@ impl RegionCaches {
     /// ```
     ///
     /// # Panics
-    /// As [`write_indices`](Self::write_indices), and when the region has more than 65,536
+    /// As [`write_indices`](Self::write_indices), and when the region has more than 65,535
     /// vertices.
     pub fn write_indices_u16(
         &mut self,
@@ -400,7 +411,7 @@ impl RegionCaches {
     ) -> usize {
         assert!(
             mesh.regions()[region].fits_u16(),
-            "region {region} has more than 65,536 vertices: 16-bit indices cannot address them"
+            "region {region} has more than 65,535 vertices: 16-bit indices cannot address them"
         );
         self.write(mesh, region, out)
     }
@@ -449,7 +460,7 @@ mod tests {
     use crate::regions::{GridPlane, Partition, RegionMesh};
     use glam::Vec3;
 
-    /// 32-bit and 16-bit caches move and write alike (regions of more than 65,536 vertices
+    /// 32-bit and 16-bit caches move and write alike (regions of more than 65,535 vertices
     /// get 32-bit ones; here they are forced on a small mesh).
     #[test]
     fn wide_and_narrow_caches_agree() {

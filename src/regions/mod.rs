@@ -163,12 +163,13 @@ impl Region {
         }
     }
 
-    /// True when 16-bit indices can address the region's local vertex table (at most 65,536
-    /// vertices): see [`RegionCaches::write_indices_u16`].
+    /// True when 16-bit indices can address the region's local vertex table (at most 65,535
+    /// vertices: index `0xFFFF` stays unused, Metal and WebGL read it as a primitive restart):
+    /// see [`RegionCaches::write_indices_u16`].
     #[inline]
     #[must_use]
     pub fn fits_u16(&self) -> bool {
-        self.mesh.mesh().vertex_count() <= 1 << 16
+        self.mesh.mesh().vertex_count() <= usize::from(u16::MAX)
     }
 
     /// The region's progressive sequence. Its vertex table is local: see
