@@ -128,6 +128,22 @@ fn border_triangles(data: &super::Region, active_triangles: usize) -> &[u32] {
     &data.border[..n]
 }
 
+/// [`oriented_key`] of triangle `t` of `indices`, by position.
+#[inline(always)]
+fn oriented_triangle<J: CacheIndex>(
+    data: &super::Region,
+    indices: &[J],
+    t: u32,
+) -> Option<([u32; 3], bool)> {
+    let t = 3 * t as usize;
+    let corners = &indices[t..t + 3];
+    oriented_key([
+        data.position_of(corners[0].into()),
+        data.position_of(corners[1].into()),
+        data.position_of(corners[2].into()),
+    ])
+}
+
 /// A hash of a sorted position triple: equal triples hash equally.
 #[inline]
 fn key_hash([x, y, z]: [u32; 3]) -> u32 {
@@ -176,10 +192,7 @@ impl Scratch {
         // Border triangles whose representatives merged: degenerate ones, and "fins" (the
         // same three vertices twice, once each way round) are not emitted. Only border
         // triangles can become either: a region's own steps never create them.
-        let oriented = |t: u32| {
-            let t = 3 * t as usize;
-            oriented_key([0, 1, 2].map(|k| data.position_of(indices[t + k].into())))
-        };
+        let oriented = |t: u32| oriented_triangle(data, indices, t);
         // One pass with a small open-addressing set of the position triples: degenerate
         // triangles are marked, and fins are looked for only when two triples are equal
         // (rare: it takes a neighbour's front folding onto this region's border).
