@@ -50,7 +50,7 @@ lint:
 	$(CARGO) clippy --no-default-features --lib --tests -- -D warnings
 
 bench:
-	$(CARGO) bench --no-default-features --bench multires --bench budget --bench skin
+	$(CARGO) bench --no-default-features --bench multires --bench budget --bench skin --bench frame_core
 
 # The Bevy benches (release builds of Bevy take long on small machines).
 bench-bevy: deps
