@@ -52,7 +52,9 @@ fn main() {
         "bevy_aslod per-frame core work, one thread, no Bevy: {models} models x 16 regions, P = {}, {FRAMES} frames",
         models * 1_000
     );
-    println!("| hysteresis | projected areas ms | allocator ms | move caches + write buffers ms | total ms | buffers written per frame |");
+    println!(
+        "| hysteresis | projected areas ms | allocator ms | move caches + write buffers ms | total ms | buffers written per frame |"
+    );
     println!("|---:|---:|---:|---:|---:|---:|");
     for hysteresis in [0, 8] {
         run(models, hysteresis);
