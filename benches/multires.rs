@@ -1,6 +1,7 @@
 //! Progressive mesh benchmarks on the Stanford bunny (69,451 triangles):
 //! - `cache_sweep`: the polygon cache swept between 1% and 100% and back; the throughput is
-//!   triangles added or removed per second (target: at least 100 million);
+//!   triangles added or removed per second (target: at least 100 million), with 32-bit and
+//!   16-bit indices;
 //! - `build`: the whole progressive sequence, against meshoptimizer's single simplification
 //!   to 1% (the `meshopt` crate) in the same run.
 
@@ -33,6 +34,15 @@ fn cache_sweep(c: &mut Criterion) {
             cache.set_triangle_count(&pm, black_box(full));
             cache.set_triangle_count(&pm, black_box(low));
             black_box(cache.indices().len())
+        })
+    });
+    let mut narrow = PolygonCache::<u16>::with_index_type(&pm).expect("the bunny fits u16");
+    narrow.set_triangle_count(&pm, low);
+    group.bench_function("bunny_1pc_to_100pc_and_back_u16", |b| {
+        b.iter(|| {
+            narrow.set_triangle_count(&pm, black_box(full));
+            narrow.set_triangle_count(&pm, black_box(low));
+            black_box(narrow.indices().len())
         })
     });
     group.finish();
