@@ -77,6 +77,11 @@ impl Quadric {
 
     /// Mean squared distance of `p` to the planes (`0` for an empty quadric).
     #[inline]
+    pub(crate) fn weight(&self) -> f64 {
+        self.weight
+    }
+
+    #[inline]
     pub(crate) fn error(&self, p: DVec3) -> f64 {
         if self.weight <= 0.0 {
             return 0.0;
