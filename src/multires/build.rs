@@ -571,11 +571,15 @@ impl<'a> Builder<'a> {
             candidates.push((e, w));
         }
         self.scratch.neighbors = nu;
-        // Equal costs (exactly 0 on a flat face) go to the target that has absorbed the least,
-        // so a flat face does not pour into one vertex.
+        // Equal costs (0 on a flat face, up to the rounding of f32 coordinates: a distance
+        // below 1e-7 of the diagonal) go to the target that has absorbed the least, so a flat
+        // face does not pour into one vertex.
         let quadrics = &self.quadrics;
+        let tiny = 1e-14 / (self.inv_diagonal * self.inv_diagonal);
+        let level = |e: f64| if e <= tiny { 0.0 } else { e };
         let order = |a: &(f64, u32), b: &(f64, u32)| {
-            a.0.total_cmp(&b.0)
+            level(a.0)
+                .total_cmp(&level(b.0))
                 .then_with(|| {
                     let weight = |w: u32| quadrics[w as usize].weight();
                     weight(a.1).total_cmp(&weight(b.1))
