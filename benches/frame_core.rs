@@ -5,38 +5,17 @@
 //!
 //! `cargo bench --no-default-features --bench frame_core` (`MODELS=N` for another count)
 
-use bevy_aslod::budget::{
-    AllocationParams, Allocator, Obb, ProjectedAreaCamera, RegionInput, fit_aabb, fit_obb,
-};
-use bevy_aslod::mesh::IndexedMesh;
+#[path = "common/scene.rs"]
+mod scene;
+
+use bevy_aslod::budget::{AllocationParams, Allocator, Obb, ProjectedAreaCamera, RegionInput};
 use bevy_aslod::multires::BuildOptions;
-use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh};
+use bevy_aslod::regions::{GridPlane, Partition, Region, RegionCaches, RegionMesh};
 use glam::{Affine3A, Mat4, Vec2, Vec3};
 use std::time::Instant;
 
 const WARMUP: usize = 10;
 const FRAMES: usize = 120;
-
-/// A bumpy `n`×`n`-vertex patch, 16 units wide (as in `benches/plugin.rs`).
-fn patch(n: u32) -> IndexedMesh {
-    let mut positions = Vec::new();
-    for z in 0..n {
-        for x in 0..n {
-            let (fx, fz) = (x as f32, z as f32);
-            let y = ((fx * 0.7).sin() * (fz * 0.9).cos() + (fx * 0.31 + fz * 0.17).sin()) * 0.6;
-            let s = 16.0 / (n - 1) as f32;
-            positions.push(Vec3::new(fx * s - 8.0, y, fz * s - 8.0));
-        }
-    }
-    let mut indices = Vec::new();
-    for z in 0..n - 1 {
-        for x in 0..n - 1 {
-            let i = z * n + x;
-            indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
-        }
-    }
-    IndexedMesh::new(positions, indices)
-}
 
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -62,25 +41,13 @@ fn main() {
 }
 
 fn run(models: usize, hysteresis: u32) {
-    let mesh = patch(33);
+    let mesh = scene::patch(33);
     let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
     let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).expect("patch");
-    let obbs: Vec<Obb> = regions
-        .regions()
-        .iter()
-        .map(|r| {
-            let points: Vec<Vec3> = r.own_positions().collect();
-            fit_obb(&points)
-                .or_else(|| fit_aabb(&points))
-                .expect("a region has points")
-        })
-        .collect();
-    let side = (models as f32).sqrt().ceil() as usize;
+    let obbs: Vec<Obb> = regions.regions().iter().map(Region::obb).collect();
+    let side = scene::side(models);
     let transforms: Vec<Affine3A> = (0..models)
-        .map(|i| {
-            let (x, z) = ((i % side) as f32 * 20.0, (i / side) as f32 * 20.0);
-            Affine3A::from_translation(Vec3::new(x, 0.0, z))
-        })
+        .map(|i| Affine3A::from_translation(scene::model_position(i, side)))
         .collect();
     let n = regions.regions().len();
     let mut caches: Vec<RegionCaches> = (0..models).map(|_| RegionCaches::new(&regions)).collect();
@@ -93,14 +60,12 @@ fn run(models: usize, hysteresis: u32) {
     };
     let projection =
         Mat4::perspective_infinite_reverse_rh(std::f32::consts::FRAC_PI_4, 16.0 / 9.0, 0.1);
-    let extent = side as f32 * 20.0;
     let (mut areas, mut split, mut update, mut total) = (vec![], vec![], vec![], vec![]);
     let mut written = 0;
     for frame in 0..WARMUP + FRAMES {
         let t = frame as f32 / (WARMUP + FRAMES) as f32;
-        let at = Vec3::new(t * extent, 120.0, -60.0 + (t * 6.0).sin() * 20.0);
-        let world_from_view =
-            Mat4::look_at_rh(at, at + Vec3::new(10.0, -60.0, 100.0), Vec3::Y).inverse();
+        let (eye, target) = scene::camera(t, side);
+        let world_from_view = Mat4::look_at_rh(eye, target, Vec3::Y).inverse();
         let camera = ProjectedAreaCamera::from_world_from_view(
             world_from_view,
             projection,

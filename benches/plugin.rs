@@ -4,9 +4,10 @@
 //! `cargo bench --bench plugin`
 
 mod common;
+#[path = "common/scene.rs"]
+mod scene;
 
 use bevy::prelude::*;
-use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{AslodPlugin, AslodStats, AslodViewport, MultiresMesh, MultiresModel};
 use bevy_aslod::regions::{GridPlane, Partition};
 use std::time::Instant;
@@ -15,27 +16,6 @@ const MODELS: usize = 1_000;
 const BUDGET: u32 = 1_000_000;
 const WARMUP: usize = 10;
 const FRAMES: usize = 120;
-
-/// A bumpy `n`×`n`-vertex patch, 16 units wide.
-fn patch(n: u32) -> IndexedMesh {
-    let mut positions = Vec::new();
-    for z in 0..n {
-        for x in 0..n {
-            let (fx, fz) = (x as f32, z as f32);
-            let y = ((fx * 0.7).sin() * (fz * 0.9).cos() + (fx * 0.31 + fz * 0.17).sin()) * 0.6;
-            let s = 16.0 / (n - 1) as f32;
-            positions.push(Vec3::new(fx * s - 8.0, y, fz * s - 8.0));
-        }
-    }
-    let mut indices = Vec::new();
-    for z in 0..n - 1 {
-        for x in 0..n - 1 {
-            let i = z * n + x;
-            indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
-        }
-    }
-    IndexedMesh::new(positions, indices)
-}
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
@@ -51,7 +31,7 @@ fn main() {
 
 /// One run: build the scene, fly the camera, print the table.
 fn run(hysteresis: u32) {
-    let mesh = patch(33);
+    let mesh = scene::patch(33);
     let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
     let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
     let regions = asset.region_count();
@@ -78,16 +58,14 @@ fn run(hysteresis: u32) {
         .world_mut()
         .resource_mut::<Assets<StandardMaterial>>()
         .add(StandardMaterial::default());
-    let side = (MODELS as f32).sqrt().ceil() as usize;
+    let side = scene::side(MODELS);
     for i in 0..MODELS {
-        let (x, z) = ((i % side) as f32 * 20.0, (i / side) as f32 * 20.0);
         app.world_mut().spawn((
             MultiresModel(handle.clone()),
             MeshMaterial3d(material.clone()),
-            Transform::from_xyz(x, 0.0, z),
+            Transform::from_translation(scene::model_position(i, side)),
         ));
     }
-    let extent = side as f32 * 20.0;
     let camera = app
         .world_mut()
         .spawn((
@@ -110,12 +88,10 @@ fn run(hysteresis: u32) {
     let mut max_triangles = 0u64;
     for frame in 0..WARMUP + FRAMES {
         let t = frame as f32 / (WARMUP + FRAMES) as f32;
-        // Sweep along the front of the grid, high up, looking into it.
-        let at = Vec3::new(t * extent, 120.0, -60.0 + (t * 6.0).sin() * 20.0);
+        let (eye, target) = scene::camera(t, side);
         *app.world_mut()
             .get_mut::<Transform>(camera)
-            .expect("camera") =
-            Transform::from_translation(at).looking_at(at + Vec3::new(10.0, -60.0, 100.0), Vec3::Y);
+            .expect("camera") = Transform::from_translation(eye).looking_at(target, Vec3::Y);
         let start = Instant::now();
         app.update();
         let wall = start.elapsed().as_secs_f64() * 1e3;

@@ -251,3 +251,23 @@ impl IndexedMesh {
         Ok((mesh, report))
     }
 }
+
+/// An `n`×`n`-vertex grid in the XZ plane, one unit apart, at heights `height(x, z)`: the
+/// unit tests' terrain.
+#[cfg(test)]
+pub(crate) fn test_grid(n: u32, height: impl Fn(u32, u32) -> f32) -> IndexedMesh {
+    let mut positions = Vec::new();
+    for z in 0..n {
+        for x in 0..n {
+            positions.push(glam::Vec3::new(x as f32, height(x, z), z as f32));
+        }
+    }
+    let mut indices = Vec::new();
+    for z in 0..n - 1 {
+        for x in 0..n - 1 {
+            let i = z * n + x;
+            indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
+        }
+    }
+    IndexedMesh::new(positions, indices)
+}

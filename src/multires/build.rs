@@ -812,26 +812,14 @@ pub(crate) fn build(
 #[cfg(test)]
 mod tests {
     use super::{BuildOptions, build};
-    use crate::mesh::IndexedMesh;
-    use glam::Vec3;
+    use crate::mesh::test_grid;
 
     /// On a flat face every collapse costs exactly 0. Equal costs go to the target that has
     /// absorbed the least, so the face does not pour into one vertex (whose averaged quadric
     /// would then barely see its other sides).
     #[test]
     fn a_flat_face_does_not_pour_into_one_vertex() {
-        let n = 12u32;
-        let positions = (0..n * n)
-            .map(|i| Vec3::new((i % n) as f32, 0.0, (i / n) as f32))
-            .collect();
-        let mut indices = Vec::new();
-        for z in 0..n - 1 {
-            for x in 0..n - 1 {
-                let i = z * n + x;
-                indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
-            }
-        }
-        let mesh = IndexedMesh::new(positions, indices);
+        let mesh = test_grid(12, |_, _| 0.0);
         let built = build(
             &mesh,
             &BuildOptions::default(),

@@ -75,12 +75,13 @@ impl Quadric {
         r.max(0.0)
     }
 
-    /// Mean squared distance of `p` to the planes (`0` for an empty quadric).
+    /// Total weight (area) of the planes merged into this quadric.
     #[inline]
     pub(crate) fn weight(&self) -> f64 {
         self.weight
     }
 
+    /// Mean squared distance of `p` to the planes (`0` for an empty quadric).
     #[inline]
     pub(crate) fn error(&self, p: DVec3) -> f64 {
         if self.weight <= 0.0 {

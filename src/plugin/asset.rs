@@ -1,10 +1,10 @@
 //! The [`MultiresMesh`] asset: a partitioned multiresolution mesh shared by its instances.
 
 use crate::bevy_mesh::from_bevy_mesh;
-use crate::budget::{Obb, fit_aabb, fit_obb};
+use crate::budget::{Obb, fit_aabb};
 use crate::mesh::{IndexedMesh, MeshError};
 use crate::multires::BuildOptions;
-use crate::regions::{GridPlane, Partition, RegionError, RegionMesh};
+use crate::regions::{GridPlane, Partition, Region, RegionError, RegionMesh};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
 use glam::Vec3;
@@ -89,15 +89,7 @@ impl MultiresMesh {
         let obbs = regions
             .regions()
             .iter()
-            .map(|region| {
-                let points: Vec<Vec3> = region.own_positions().collect();
-                fit_obb(&points)
-                    .or_else(|| fit_aabb(&points))
-                    .unwrap_or_else(|| {
-                        let (lo, hi) = region.bounds();
-                        Obb::from_aabb(lo, hi)
-                    })
-            })
+            .map(Region::obb)
             .collect::<Arc<[Obb]>>();
         let corners: Vec<Vec3> = obbs.iter().flat_map(Obb::corners).collect();
         let bounds = fit_aabb(&corners).unwrap_or(Obb::from_aabb(Vec3::ZERO, Vec3::ZERO));

@@ -85,9 +85,9 @@ struct Scratch {
     /// Open-addressing set of border triangles (position in `Region::border` + 1,
     /// 0 empty), by the hash of their sorted positions.
     table: Vec<u32>,
-    /// Each border triangle's sorted positions (`[u32::MAX; 3]` for a degenerate one, which
-    /// is never put in `table`).
-    exact: Vec<[u32; 3]>,
+    /// Each border triangle's sorted positions and winding (`None` when degenerate, never put
+    /// in `table`).
+    keys: Vec<Option<([u32; 3], bool)>>,
     /// Border triangles by exact oriented key, when some share their positions.
     group: Vec<([u32; 3], bool, u32)>,
 }
@@ -192,7 +192,6 @@ impl Scratch {
         // Border triangles whose representatives merged: degenerate ones, and "fins" (the
         // same three vertices twice, once each way round) are not emitted. Only border
         // triangles can become either: a region's own steps never create them.
-        let oriented = |t: u32| oriented_triangle(data, indices, t);
         // One pass with a small open-addressing set of the position triples: degenerate
         // triangles are marked, and fins are looked for only when two triples are equal
         // (rare: it takes a neighbour's front folding onto this region's border).
@@ -204,18 +203,18 @@ impl Scratch {
         let table = &mut self.table;
         table.clear();
         table.resize(slots, 0);
-        let exact = &mut self.exact;
-        exact.clear();
+        let keys = &mut self.keys;
+        keys.clear();
         let (mut skipped, mut repeated) = (false, false);
         for (i, &t) in border.iter().enumerate() {
-            let Some((key, _)) = oriented(t) else {
+            let oriented = oriented_triangle(data, indices, t);
+            keys.push(oriented);
+            let Some((key, _)) = oriented else {
                 // Two corners at one position (seam copies count as one) make no area.
                 skip[i] = true;
                 skipped = true;
-                exact.push([u32::MAX; 3]);
                 continue;
             };
-            exact.push(key);
             let mut h = key_hash(key) as usize & mask;
             loop {
                 match table[h] {
@@ -223,7 +222,7 @@ impl Scratch {
                         table[h] = i as u32 + 1;
                         break;
                     }
-                    e if exact[e as usize - 1] == key => {
+                    e if keys[e as usize - 1].is_some_and(|(k, _)| k == key) => {
                         repeated = true;
                         break;
                     }
@@ -235,10 +234,9 @@ impl Scratch {
             skipped = true;
             self.group.clear();
             self.group.extend(
-                border
-                    .iter()
+                keys.iter()
                     .enumerate()
-                    .filter_map(|(i, &t)| oriented(t).map(|(key, fwd)| (key, fwd, i as u32))),
+                    .filter_map(|(i, k)| k.map(|(key, fwd)| (key, fwd, i as u32))),
             );
             cancel_fins(&mut self.group, skip);
         }
@@ -468,31 +466,15 @@ impl RegionCaches {
 #[cfg(test)]
 mod tests {
     use super::{Cache, RegionCaches, cancel_fins};
-    use crate::mesh::IndexedMesh;
+    use crate::mesh::test_grid;
     use crate::multires::{BuildOptions, PolygonCache};
     use crate::regions::{GridPlane, Partition, RegionMesh};
-    use glam::Vec3;
 
     /// 32-bit and 16-bit caches move and write alike (regions of more than 65,535 vertices
     /// get 32-bit ones; here they are forced on a small mesh).
     #[test]
     fn wide_and_narrow_caches_agree() {
-        let n = 17u32;
-        let mut positions = Vec::new();
-        for z in 0..n {
-            for x in 0..n {
-                let y = ((x * 7 + z * 13) % 5) as f32 * 0.1;
-                positions.push(Vec3::new(x as f32, y, z as f32));
-            }
-        }
-        let mut indices = Vec::new();
-        for z in 0..n - 1 {
-            for x in 0..n - 1 {
-                let i = z * n + x;
-                indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
-            }
-        }
-        let mesh = IndexedMesh::new(positions, indices);
+        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
         let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
         let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
         let mut narrow = RegionCaches::new(&regions);

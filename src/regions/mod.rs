@@ -169,7 +169,7 @@ impl Region {
     #[inline]
     #[must_use]
     pub fn fits_u16(&self) -> bool {
-        self.mesh.mesh().vertex_count() <= usize::from(u16::MAX)
+        self.mesh.mesh().vertex_count() as u64 <= <u16 as crate::multires::CacheIndex>::MAX_VERTICES
     }
 
     /// The region's progressive sequence. Its vertex table is local: see
@@ -206,6 +206,18 @@ impl Region {
     #[must_use]
     pub fn bounds(&self) -> (Vec3, Vec3) {
         self.bounds
+    }
+
+    /// The tight box around the region's own vertices ([`fit_obb`](crate::budget::fit_obb);
+    /// an axis-aligned one when that fails, the bounds when no point is usable): the box the
+    /// budget projects.
+    #[must_use]
+    pub fn obb(&self) -> crate::budget::Obb {
+        use crate::budget::{Obb, fit_aabb, fit_obb};
+        let points: Vec<Vec3> = self.own_positions().collect();
+        fit_obb(&points)
+            .or_else(|| fit_aabb(&points))
+            .unwrap_or_else(|| Obb::from_aabb(self.bounds.0, self.bounds.1))
     }
 
     /// Positions of the region's own vertices (for fitting a bounding box).
