@@ -162,7 +162,7 @@ fn extract(input: &Path, triangles: Option<usize>, error: Option<f32>, output: &
         (None, Some(e)) => cache.set_max_error(&pm, e),
         (None, None) => unreachable!("clap requires one of them"),
     };
-    let mut out = pm.mesh().clone();
+    let mut out = pm.vertices().clone();
     out.indices = cache.indices().to_vec();
     let file = std::fs::File::create(output)?;
     write_obj(&out, &mut BufWriter::new(file))?;
@@ -382,7 +382,7 @@ fn compare(
         let ours_triangles = cache.set_triangle_count(&pm, target);
         let ours = mesh_distance(
             original,
-            MeshRef::new(&pm.mesh().positions, cache.indices()),
+            MeshRef::new(&pm.vertices().positions, cache.indices()),
             &options,
         );
         let simplified = meshopt_simplify(&mesh, target);

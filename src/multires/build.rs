@@ -13,9 +13,10 @@
 //! 5. pop, re-validate, perform, record, and re-rank the one-ring of the surviving vertex;
 //! 6. lay the triangles out in removal order and pack the records.
 
+use super::ProgressiveMesh;
 use super::heap::IndexedHeap;
 use super::quadric::Quadric;
-use super::{ProgressiveMesh, StepHeader};
+use super::records::{Layout, Unpacked, error_to_u16};
 use crate::mesh::{IndexedMesh, MeshError, weld_positions};
 use glam::DVec3;
 
@@ -701,7 +702,9 @@ impl<'a> Builder<'a> {
     ///
     /// Triangles from `owned` on are context: they took part in the checks but are neither
     /// laid out nor recorded.
-    fn finish(self, owned: usize) -> Built {
+    ///
+    /// `None` when a step rewrites more corners than a record header can count (268 million).
+    fn finish(self, owned: usize) -> Option<Built> {
         let tri_count = self.tris.len();
         let mut slot = vec![u32::MAX; tri_count];
         let mut order: Vec<u32> = Vec::with_capacity(owned);
@@ -747,29 +750,36 @@ impl<'a> Builder<'a> {
                 let corner = 3 * slot[t as usize] + k as u32;
                 corners.push(corner << 1 | pair as u32);
             }
-            steps.push(StepHeader {
-                corners: (corners.len() - first_corner) as u16,
-                removed: c.removed[..c.removed_count as usize]
+            steps.push((
+                corners.len() - first_corner,
+                pairs.len() - first_pair,
+                c.removed[..c.removed_count as usize]
                     .iter()
                     .filter(|&&t| (t as usize) < owned)
-                    .count() as u8,
-                pairs: (pairs.len() - first_pair) as u8,
-            });
-            errors.push(c.error);
+                    .count(),
+            ));
+            errors.push(error_to_u16(c.error));
         }
-        let mut vertices = self.mesh.clone();
-        vertices.indices = indices;
-        Built {
+        let vertices = IndexedMesh {
+            indices: Vec::new(),
+            ..self.mesh.clone()
+        };
+        let records = Unpacked {
+            indices,
+            steps,
+            corners,
+            pairs,
+        };
+        let records = Layout::new(&records, vertices.vertex_count())?;
+        Some(Built {
             mesh: ProgressiveMesh {
-                mesh: vertices,
+                vertices,
                 base_triangles: base_triangles as u32,
-                steps,
-                corners,
-                pairs,
+                records,
                 errors,
             },
             moves: self.moves,
-        }
+        })
     }
 }
 
@@ -806,7 +816,15 @@ pub(crate) fn build(
     }
     let mut builder = Builder::new(mesh, options, pinned, anchors);
     builder.run(progress);
-    Ok(builder.finish(owned.min(mesh.triangle_count())))
+    builder
+        .finish(owned.min(mesh.triangle_count()))
+        .ok_or_else(|| {
+            MeshError::parse(
+                "mesh",
+                "index buffer",
+                "a vertex is shared by more than 268 million triangles",
+            )
+        })
 }
 
 #[cfg(test)]
@@ -830,7 +848,7 @@ mod tests {
         )
         .unwrap();
         // How many collapses each vertex absorbed over the first half of the sequence.
-        let half = built.mesh.steps.len() / 2;
+        let half = (built.mesh.level_count() - 1) / 2;
         let mut absorbed = vec![0u32; mesh.vertex_count()];
         for &(step, _, new) in &built.moves {
             if (step as usize) < half {

@@ -1,6 +1,7 @@
 //! The polygon cache: one instance's current level of a [`ProgressiveMesh`].
 
 use super::ProgressiveMesh;
+use super::records::{Layout, Walk};
 
 /// One instance's index buffer at its current level (ASLOD's polygonal cache).
 ///
@@ -16,10 +17,7 @@ use super::ProgressiveMesh;
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PolygonCache<I: CacheIndex = u32> {
     indices: Vec<I>,
-    level: usize,
-    triangles: usize,
-    corner_cursor: usize,
-    pair_cursor: usize,
+    walk: Walk,
     changed: bool,
 }
 
@@ -93,20 +91,16 @@ impl<I: CacheIndex> PolygonCache<I> {
     /// ```
     #[must_use]
     pub fn with_index_type(mesh: &ProgressiveMesh) -> Option<Self> {
-        (mesh.mesh().vertex_count() as u64 <= I::MAX_VERTICES).then(|| Self::full(mesh))
+        (mesh.vertices().vertex_count() as u64 <= I::MAX_VERTICES).then(|| Self::full(mesh))
     }
 
     fn full(mesh: &ProgressiveMesh) -> Self {
         Self {
-            indices: mesh
-                .full_indices()
-                .iter()
-                .map(|&v| I::from_u32(v))
-                .collect(),
-            level: 0,
-            triangles: mesh.max_triangles(),
-            corner_cursor: 0,
-            pair_cursor: 0,
+            indices: mesh.records.indices_as(),
+            walk: Walk {
+                count: mesh.max_triangles(),
+                ..Walk::default()
+            },
             changed: true,
         }
     }
@@ -116,7 +110,7 @@ impl<I: CacheIndex> PolygonCache<I> {
     #[inline]
     #[must_use]
     pub fn indices(&self) -> &[I] {
-        &self.indices[..3 * self.triangles]
+        &self.indices[..3 * self.walk.count]
     }
 
     /// The whole index buffer, for regions to resolve their foreign corners in place.
@@ -129,14 +123,14 @@ impl<I: CacheIndex> PolygonCache<I> {
     #[inline]
     #[must_use]
     pub fn triangle_count(&self) -> usize {
-        self.triangles
+        self.walk.count
     }
 
     /// Current level: `0` is full detail, each level one collapse coarser.
     #[inline]
     #[must_use]
     pub fn level(&self) -> usize {
-        self.level
+        self.walk.level
     }
 
     /// True when the index buffer changed since the last [`clear_changed`](Self::clear_changed)
@@ -156,40 +150,23 @@ impl<I: CacheIndex> PolygonCache<I> {
     /// One collapse coarser. Returns false at the base level.
     #[inline]
     pub fn coarsen(&mut self, mesh: &ProgressiveMesh) -> bool {
-        let Some(step) = mesh.steps.get(self.level) else {
-            return false;
+        let moved = match &mesh.records {
+            Layout::Narrow(r) => r.coarsen(&mut self.indices, &mut self.walk),
+            Layout::Wide(r) => r.coarsen(&mut self.indices, &mut self.walk),
         };
-        let corners = &mesh.corners[self.corner_cursor..][..step.corners as usize];
-        let pairs = &mesh.pairs[self.pair_cursor..][..step.pairs as usize];
-        for &c in corners {
-            self.indices[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][1]);
-        }
-        self.corner_cursor += step.corners as usize;
-        self.pair_cursor += step.pairs as usize;
-        self.triangles -= step.removed as usize;
-        self.level += 1;
-        self.changed = true;
-        true
+        self.changed |= moved;
+        moved
     }
 
     /// One vertex split finer. Returns false at full detail.
     #[inline]
     pub fn refine(&mut self, mesh: &ProgressiveMesh) -> bool {
-        if self.level == 0 {
-            return false;
-        }
-        let step = mesh.steps[self.level - 1];
-        self.corner_cursor -= step.corners as usize;
-        self.pair_cursor -= step.pairs as usize;
-        let corners = &mesh.corners[self.corner_cursor..][..step.corners as usize];
-        let pairs = &mesh.pairs[self.pair_cursor..][..step.pairs as usize];
-        for &c in corners {
-            self.indices[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][0]);
-        }
-        self.triangles += step.removed as usize;
-        self.level -= 1;
-        self.changed = true;
-        true
+        let moved = match &mesh.records {
+            Layout::Narrow(r) => r.refine(&mut self.indices, &mut self.walk),
+            Layout::Wide(r) => r.refine(&mut self.indices, &mut self.walk),
+        };
+        self.changed |= moved;
+        moved
     }
 
     /// Moves to the finest level with at most `triangles` triangles (never below the base
@@ -201,45 +178,21 @@ impl<I: CacheIndex> PolygonCache<I> {
     /// May panic when `mesh` is not the mesh the cache was made for (debug builds also check
     /// that a 16-bit cache's indices fit).
     pub fn set_triangle_count(&mut self, mesh: &ProgressiveMesh, triangles: usize) -> usize {
-        // The walk keeps its cursors in locals: one step is a handful of stores.
-        let (steps, corners, pairs) = (&mesh.steps[..], &mesh.corners[..], &mesh.pairs[..]);
-        let indices = &mut self.indices[..];
-        let (mut level, mut count) = (self.level, self.triangles);
-        let (mut cc, mut pc) = (self.corner_cursor, self.pair_cursor);
-        while count > triangles && level < steps.len() {
-            let step = steps[level];
-            let (nc, np) = (step.corners as usize, step.pairs as usize);
-            let pair = &pairs[pc..pc + np];
-            for &c in &corners[cc..cc + nc] {
-                indices[(c >> 1) as usize] = I::from_u32(pair[(c & 1) as usize][1]);
-            }
-            (cc, pc) = (cc + nc, pc + np);
-            count -= step.removed as usize;
-            level += 1;
+        let level = self.walk.level;
+        match &mesh.records {
+            Layout::Narrow(r) => r.walk(&mut self.indices, &mut self.walk, triangles),
+            Layout::Wide(r) => r.walk(&mut self.indices, &mut self.walk, triangles),
         }
-        while level > 0 && count + steps[level - 1].removed as usize <= triangles {
-            let step = steps[level - 1];
-            let (nc, np) = (step.corners as usize, step.pairs as usize);
-            (cc, pc) = (cc - nc, pc - np);
-            let pair = &pairs[pc..pc + np];
-            for &c in &corners[cc..cc + nc] {
-                indices[(c >> 1) as usize] = I::from_u32(pair[(c & 1) as usize][0]);
-            }
-            count += step.removed as usize;
-            level -= 1;
-        }
-        self.changed |= level != self.level;
-        (self.level, self.triangles) = (level, count);
-        (self.corner_cursor, self.pair_cursor) = (cc, pc);
-        count
+        self.changed |= level != self.walk.level;
+        self.walk.count
     }
 
     /// Moves to `level` (clamped to the base level) and returns the triangle count reached.
     pub fn set_level(&mut self, mesh: &ProgressiveMesh, level: usize) -> usize {
-        let level = level.min(mesh.steps.len());
-        while self.level < level && self.coarsen(mesh) {}
-        while self.level > level && self.refine(mesh) {}
-        self.triangles
+        let level = level.min(mesh.level_count() - 1);
+        while self.walk.level < level && self.coarsen(mesh) {}
+        while self.walk.level > level && self.refine(mesh) {}
+        self.walk.count
     }
 
     /// Moves to the coarsest level whose error (relative to the bounding-box diagonal) is at

@@ -46,22 +46,13 @@ pub(crate) mod build;
 mod cache;
 mod heap;
 mod quadric;
+mod records;
 
 pub use build::BuildOptions;
 pub use cache::{CacheIndex, PolygonCache};
 
 use crate::mesh::{IndexedMesh, MeshError};
-
-/// Per-step header of the packed records.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct StepHeader {
-    /// Corner rewrites of this step.
-    pub(crate) corners: u16,
-    /// Triangles removed by this step (1 or 2).
-    pub(crate) removed: u8,
-    /// Distinct (old, new) vertex pairs of this step (1, or 2 along a seam).
-    pub(crate) pairs: u8,
-}
+use records::Layout;
 
 /// A mesh that can be moved to any triangle count between its base and full detail.
 ///
@@ -69,18 +60,16 @@ pub(crate) struct StepHeader {
 /// each instance keeps its own [`PolygonCache`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ProgressiveMesh {
-    /// The vertex table (unchanged from the source) and the full-detail triangles in slot
-    /// order: base triangles first, then the triangles of the last collapse, ..., the first.
-    pub(crate) mesh: IndexedMesh,
+    /// The vertex table, unchanged from the source; its `indices` are empty (the triangles
+    /// are in `records`).
+    pub(crate) vertices: IndexedMesh,
     pub(crate) base_triangles: u32,
-    pub(crate) steps: Vec<StepHeader>,
-    /// Corner index `<< 1 | pair`, per step in order.
-    pub(crate) corners: Vec<u32>,
-    /// `[old, new]` vertex pairs, per step in order.
-    pub(crate) pairs: Vec<[u32; 2]>,
+    /// The full-detail triangles in slot order (base triangles first, then the triangles of
+    /// the last collapse, ..., the first) and the step records, packed.
+    pub(crate) records: Layout,
     /// `errors[i]`: the geometric error after `i + 1` collapses, relative to the bounding-box
-    /// diagonal; monotone.
-    pub(crate) errors: Vec<f32>,
+    /// diagonal, rounded up to 16 bits (`records::error_to_u16`); monotone.
+    pub(crate) errors: Vec<u16>,
 }
 
 impl ProgressiveMesh {
@@ -127,25 +116,37 @@ impl ProgressiveMesh {
         Ok(build::build(&mesh, options, pinned, None, owned, progress)?.mesh)
     }
 
-    /// The vertex table and the full-detail triangles (in slot order).
+    /// The vertex table: positions and the other attributes, unchanged from the source. Its
+    /// `indices` are empty: the triangles are kept packed, see
+    /// [`full_indices`](Self::full_indices) and [`to_indexed_mesh`](Self::to_indexed_mesh).
     #[inline]
     #[must_use]
-    pub fn mesh(&self) -> &IndexedMesh {
-        &self.mesh
+    pub fn vertices(&self) -> &IndexedMesh {
+        &self.vertices
     }
 
-    /// The full-detail index buffer, in slot (reverse removal) order.
-    #[inline]
+    /// The full-detail index buffer, in slot (reverse removal) order: a copy, widened to
+    /// `u32` (the mesh keeps 16-bit indices when its vertices fit).
     #[must_use]
-    pub fn full_indices(&self) -> &[u32] {
-        &self.mesh.indices
+    pub fn full_indices(&self) -> Vec<u32> {
+        self.records.indices_as()
+    }
+
+    /// The vertex table with the full-detail triangles: the source mesh, its triangles in
+    /// slot order.
+    #[must_use]
+    pub fn to_indexed_mesh(&self) -> IndexedMesh {
+        IndexedMesh {
+            indices: self.full_indices(),
+            ..self.vertices.clone()
+        }
     }
 
     /// Triangles at full detail.
     #[inline]
     #[must_use]
     pub fn max_triangles(&self) -> usize {
-        self.mesh.triangle_count()
+        self.records.index_count() / 3
     }
 
     /// Triangles of the base mesh, the coarsest level.
@@ -160,7 +161,7 @@ impl ProgressiveMesh {
     #[inline]
     #[must_use]
     pub fn level_count(&self) -> usize {
-        self.steps.len() + 1
+        self.records.step_count() + 1
     }
 
     /// Geometric error of `level` relative to the bounding-box diagonal (the simplification
@@ -168,9 +169,9 @@ impl ProgressiveMesh {
     /// the end are clamped.
     #[must_use]
     pub fn level_error(&self, level: usize) -> f32 {
-        match level.min(self.steps.len()) {
+        match level.min(self.errors.len()) {
             0 => 0.0,
-            l => self.errors[l - 1],
+            l => records::error_from_u16(self.errors[l - 1]),
         }
     }
 
@@ -180,8 +181,8 @@ impl ProgressiveMesh {
         let mut count = self.max_triangles();
         let mut out = Vec::with_capacity(self.level_count());
         out.push(count);
-        for step in &self.steps {
-            count -= step.removed as usize;
+        for removed in self.records.removed() {
+            count -= removed;
             out.push(count);
         }
         out
@@ -192,7 +193,8 @@ impl ProgressiveMesh {
     #[must_use]
     pub fn level_for_error(&self, error: f32) -> usize {
         // errors is monotone: count the collapses whose error stays within the bound.
-        self.errors.partition_point(|&e| e <= error)
+        self.errors
+            .partition_point(|&e| records::error_from_u16(e) <= error)
     }
 
     /// Appends vertices that no triangle uses yet (regions add their neighbours'
@@ -203,21 +205,24 @@ impl ProgressiveMesh {
                 to.extend_from_slice(from);
             }
         }
-        self.mesh.positions.extend_from_slice(&vertices.positions);
-        extend(&mut self.mesh.normals, &vertices.normals);
-        extend(&mut self.mesh.uvs, &vertices.uvs);
-        extend(&mut self.mesh.joints, &vertices.joints);
-        extend(&mut self.mesh.weights, &vertices.weights);
+        self.vertices
+            .positions
+            .extend_from_slice(&vertices.positions);
+        extend(&mut self.vertices.normals, &vertices.normals);
+        extend(&mut self.vertices.uvs, &vertices.uvs);
+        extend(&mut self.vertices.joints, &vertices.joints);
+        extend(&mut self.vertices.weights, &vertices.weights);
+        self.records.reserve_vertices(self.vertices.vertex_count());
     }
 
-    /// Bytes of the shared data: the vertex table, the index buffer and the records.
+    /// Bytes of the shared data: the vertex table, the index buffer, the records and the
+    /// error table.
+    ///
+    /// A mesh of at most 65,535 vertices keeps 16-bit indices, 16-bit step headers and
+    /// 3-byte corner records; larger ones 32 bits each. Errors take 16 bits.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        indexed_mesh_bytes(&self.mesh)
-            + self.steps.len() * size_of::<StepHeader>()
-            + self.corners.len() * size_of::<u32>()
-            + self.pairs.len() * size_of::<[u32; 2]>()
-            + self.errors.len() * size_of::<f32>()
+        indexed_mesh_bytes(&self.vertices) + self.records.bytes() + self.errors.len() * 2
     }
 }
 

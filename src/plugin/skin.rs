@@ -391,7 +391,7 @@ pub(crate) fn initial_region_mesh(
     regions: &RegionMesh,
     region: usize,
 ) -> IndexedMesh {
-    let source = regions.regions()[region].progressive_mesh().mesh();
+    let source = regions.regions()[region].progressive_mesh().vertices();
     let mut mesh = IndexedMesh {
         joints: None,
         weights: None,
@@ -496,7 +496,7 @@ pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut Skin
             jobs.push(Job {
                 region: state,
                 influences: &skin.binding.local[r],
-                source: region.progressive_mesh().mesh(),
+                source: region.progressive_mesh().vertices(),
                 matrices: &skin.matrices,
                 to_local,
             });

@@ -149,7 +149,7 @@ fn spawn_regions(
                     }
                     SkinRegionKind::Deformable { .. } => (mesh, entity, false),
                 },
-                _ => (region.progressive_mesh().mesh().clone(), entity, false),
+                _ => (region.progressive_mesh().vertices().clone(), entity, false),
             };
             // Empty until `Upload` writes the first level.
             let handle = meshes.add(to_bevy_mesh(

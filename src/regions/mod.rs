@@ -169,7 +169,8 @@ impl Region {
     #[inline]
     #[must_use]
     pub fn fits_u16(&self) -> bool {
-        self.mesh.mesh().vertex_count() as u64 <= <u16 as crate::multires::CacheIndex>::MAX_VERTICES
+        self.mesh.vertices().vertex_count() as u64
+            <= <u16 as crate::multires::CacheIndex>::MAX_VERTICES
     }
 
     /// The region's progressive sequence. Its vertex table is local: see
@@ -222,7 +223,7 @@ impl Region {
 
     /// Positions of the region's own vertices (for fitting a bounding box).
     pub fn own_positions(&self) -> impl Iterator<Item = Vec3> + '_ {
-        self.mesh.mesh().positions[..self.own_vertices]
+        self.mesh.vertices().positions[..self.own_vertices]
             .iter()
             .copied()
     }
@@ -661,7 +662,7 @@ fn link_border(
         .map(|(i, &v)| (v, i as u32))
         .collect();
     let mut extra = Vec::new();
-    let indices = region.mesh.full_indices().to_vec();
+    let indices = region.mesh.full_indices();
     let mut neighbors = Vec::new();
     for (corner, &lv) in indices.iter().enumerate() {
         let v = region.global[lv as usize];
@@ -705,7 +706,7 @@ fn link_border(
     neighbors.sort_unstable();
     neighbors.dedup();
     region.neighbors = neighbors;
-    let weld = weld_positions(&region.mesh.mesh().positions);
+    let weld = weld_positions(&region.mesh.vertices().positions);
     region.position_of = if weld.unique == weld.remap.len() {
         Vec::new()
     } else {
