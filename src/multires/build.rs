@@ -36,6 +36,15 @@ pub struct BuildOptions {
     /// cosine. Default: `0.25` (about 75°; meshoptimizer's value). `0.0` is the plain
     /// "never flip" rule.
     pub min_normal_cos: f64,
+    /// Weight of a point quadric at each vertex's own position, relative to the vertex's
+    /// face and edge weights: every collapse then also pays `regularization` times its
+    /// squared length. Too small to change the shape, it decides between collapses whose
+    /// plane error is (nearly) equal, as on a flat face, in favour of the shortest edge.
+    /// It also enters the error table: a collapse on a flat face records about
+    /// `√regularization` times its edge length (3e-4 of it at the default) instead of 0.
+    /// Default: `1e-7` (meshoptimizer's default). `0.0` turns it off; negative or non-finite
+    /// values count as `0.0`.
+    pub regularization: f64,
 }
 
 impl Default for BuildOptions {
@@ -45,6 +54,7 @@ impl Default for BuildOptions {
             max_error: f32::INFINITY,
             border_weight: 10.0,
             min_normal_cos: 0.25,
+            regularization: 1e-7,
         }
     }
 }
@@ -354,6 +364,17 @@ impl<'a> Builder<'a> {
                 self.quadrics[p1 as usize].add(&q);
             }
         }
+        // Regularization: a point quadric at each position (meshoptimizer's
+        // `fillVertexQuadrics`).
+        let factor = self.options.regularization;
+        if factor > 0.0 && factor.is_finite() {
+            for (q, &p) in self.quadrics.iter_mut().zip(&self.points) {
+                let w = q.weight() * factor;
+                if w > 0.0 {
+                    q.add(&Quadric::from_point(p, w));
+                }
+            }
+        }
     }
 
     /// Collects the distinct neighbour positions of `p` into `out`.
@@ -568,7 +589,7 @@ impl<'a> Builder<'a> {
             // The error of moving u onto w, measured against u's planes (everything already
             // merged into u): meshoptimizer's choice, which beat the merged quadric
             // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
-            let e = qu.error(self.points[w as usize]);
+            let e = settle(qu.error(self.points[w as usize]));
             candidates.push((e, w));
         }
         self.scratch.neighbors = nu;
@@ -783,6 +804,15 @@ impl<'a> Builder<'a> {
     }
 }
 
+/// A collapse cost with its last 24 bits of mantissa cleared (kept to about 1e-8, relative),
+/// so that costs that are equal but for rounding (every edge of one length on a flat face
+/// costs the same regularization) compare equal and go to the tie-breaks, instead of to
+/// whichever rounding came out lower.
+#[inline]
+fn settle(cost: f64) -> f64 {
+    f64::from_bits(cost.to_bits() & !((1 << 24) - 1))
+}
+
 /// What a build produces: the progressive mesh, and every attribute vertex's move.
 pub(crate) struct Built {
     pub(crate) mesh: ProgressiveMesh,
@@ -860,5 +890,40 @@ mod tests {
             most <= 8,
             "one vertex absorbed {most} of the first {half} collapses"
         );
+    }
+
+    /// The regularization makes a flat face collapse its shortest edges first: on a grid
+    /// stretched threefold along z, every early collapse runs along x (length 1). Without it
+    /// every collapse on the face costs 0, and the order comes from the tie-breaks alone.
+    #[test]
+    fn regularization_collapses_short_edges_first() {
+        let mut mesh = test_grid(9, |_, _| 0.0);
+        for p in &mut mesh.positions {
+            p.z *= 3.0;
+        }
+        let run = |regularization| {
+            let options = BuildOptions {
+                regularization,
+                ..BuildOptions::default()
+            };
+            let built = build(
+                &mesh,
+                &options,
+                None,
+                None,
+                mesh.triangle_count(),
+                &mut |_, _| {},
+            )
+            .unwrap();
+            built.moves[..20]
+                .iter()
+                .filter(|&&(_, old, new)| {
+                    let d = mesh.positions[old as usize] - mesh.positions[new as usize];
+                    (d.length() - 1.0).abs() > 1e-6
+                })
+                .count()
+        };
+        assert_eq!(run(1e-7), 0, "a long edge collapsed among the first 20");
+        assert!(run(0.0) > 0, "the test needs the regularization to matter");
     }
 }

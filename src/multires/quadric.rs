@@ -40,6 +40,24 @@ impl Quadric {
         }
     }
 
+    /// `weight` times the squared distance to the point `p`.
+    #[inline]
+    pub(crate) fn from_point(p: DVec3, weight: f64) -> Self {
+        Self {
+            a00: weight,
+            a11: weight,
+            a22: weight,
+            a10: 0.0,
+            a20: 0.0,
+            a21: 0.0,
+            b0: -weight * p.x,
+            b1: -weight * p.y,
+            b2: -weight * p.z,
+            c: weight * p.length_squared(),
+            weight,
+        }
+    }
+
     /// The same planes, contributing nothing to the normalising weight.
     #[inline]
     pub(crate) fn without_weight(mut self) -> Self {
