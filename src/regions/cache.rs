@@ -120,12 +120,10 @@ fn oriented_key([a, b, c]: [u32; 3]) -> Option<([u32; 3], bool)> {
     })
 }
 
-/// The active triangles with a foreign corner, increasing.
-fn border_triangles(data: &super::Region, active_triangles: usize) -> &[u32] {
-    let n = data
-        .border
-        .partition_point(|&t| (t as usize) < active_triangles);
-    &data.border[..n]
+/// The active entries of `triangles` (increasing triangle indices).
+fn active(triangles: &[u32], active_triangles: usize) -> &[u32] {
+    let n = triangles.partition_point(|&t| (t as usize) < active_triangles);
+    &triangles[..n]
 }
 
 /// [`oriented_key`] of triangle `t` of `indices`, by position.
@@ -180,39 +178,48 @@ fn cancel_fins(group: &mut [([u32; 3], bool, u32)], skip: &mut [bool]) {
 }
 
 impl Scratch {
-    /// The region's active triangles `indices` into `out`, less degenerate border triangles
-    /// and fins.
+    /// The region's active triangles `indices` into `out`, less fins.
+    ///
+    /// No triangle of a region ever loses its area, and only the region's fin-prone border
+    /// triangles (usually none, see `regions::fin_prone`) can come to sit on the same three
+    /// positions as another: every other triangle is copied without a look.
     fn write<I: CacheIndex, J: CacheIndex>(
         &mut self,
         data: &super::Region,
         indices: &[J],
         out: &mut Vec<I>,
     ) {
-        let border = border_triangles(data, indices.len() / 3);
-        // Border triangles whose representatives merged: degenerate ones, and "fins" (the
-        // same three vertices twice, once each way round) are not emitted. Only border
-        // triangles can become either: a region's own steps never create them.
-        // One pass with a small open-addressing set of the position triples: degenerate
-        // triangles are marked, and fins are looked for only when two triples are equal
-        // (rare: it takes a neighbour's front folding onto this region's border).
+        debug_assert!(
+            only_fin_prone_triangles_meet(data, indices),
+            "a triangle lost its area, or border triangles met outside the fin-prone ones"
+        );
+        let prone = active(&data.fin_prone, indices.len() / 3);
+        out.clear();
+        if prone.len() < 2 {
+            // The common case: every active triangle, in one copy.
+            extend(out, indices);
+            return;
+        }
+        // Fin-prone triangles whose positions are now the same as another's: "fins" (the
+        // same three positions twice, once each way round) cancel in pairs, and of what is
+        // left one copy stays. One pass with a small open-addressing set of the position
+        // triples; the sort-based `cancel_fins` runs only when two are equal.
         let skip = &mut self.skip;
         skip.clear();
-        skip.resize(border.len(), false);
-        let slots = (2 * border.len()).next_power_of_two().max(16);
+        skip.resize(prone.len(), false);
+        let slots = (2 * prone.len()).next_power_of_two().max(16);
         let mask = slots - 1;
         let table = &mut self.table;
         table.clear();
         table.resize(slots, 0);
         let keys = &mut self.keys;
         keys.clear();
-        let (mut skipped, mut repeated) = (false, false);
-        for (i, &t) in border.iter().enumerate() {
+        let mut repeated = false;
+        for (i, &t) in prone.iter().enumerate() {
             let oriented = oriented_triangle(data, indices, t);
             keys.push(oriented);
             let Some((key, _)) = oriented else {
-                // Two corners at one position (seam copies count as one) make no area.
-                skip[i] = true;
-                skipped = true;
+                skip[i] = true; // no area (never happens, see above; checked in debug builds)
                 continue;
             };
             let mut h = key_hash(key) as usize & mask;
@@ -231,7 +238,6 @@ impl Scratch {
             }
         }
         if repeated {
-            skipped = true;
             self.group.clear();
             self.group.extend(
                 keys.iter()
@@ -240,41 +246,44 @@ impl Scratch {
             );
             cancel_fins(&mut self.group, skip);
         }
-        out.clear();
-        if !skipped {
-            // The common case: every active triangle, in one copy.
+        if !skip.contains(&true) {
             extend(out, indices);
-        } else {
-            // Own triangles are copied in runs; skipped border triangles are left out.
-            out.reserve(indices.len());
-            let mut next = 0; // first triangle not yet copied or checked
-            for (&t, &left_out) in border.iter().zip(skip.iter()) {
-                let t = t as usize;
-                extend(out, &indices[3 * next..3 * t]);
-                if !left_out {
-                    extend(out, &indices[3 * t..3 * t + 3]);
-                }
-                next = t + 1;
-            }
-            extend(out, &indices[3 * next..]);
+            return;
         }
-        debug_assert!(
-            own_triangles_have_area(data, indices),
-            "a region's own collapses never leave a triangle without area"
-        );
+        // Triangles are copied in runs; skipped fin-prone triangles are left out.
+        out.reserve(indices.len());
+        let mut next = 0; // first triangle not yet copied or checked
+        for (&t, &left_out) in prone.iter().zip(skip.iter()) {
+            let t = t as usize;
+            extend(out, &indices[3 * next..3 * t]);
+            if !left_out {
+                extend(out, &indices[3 * t..3 * t + 3]);
+            }
+            next = t + 1;
+        }
+        extend(out, &indices[3 * next..]);
     }
 }
 
-/// Every triangle without a foreign corner has three corners at distinct positions (checked
-/// in debug builds: `write_indices` copies such triangles without looking).
-fn own_triangles_have_area<J: CacheIndex>(data: &super::Region, indices: &[J]) -> bool {
-    let border: std::collections::HashSet<u32> = border_triangles(data, indices.len() / 3)
+/// Every active triangle has three corners at distinct positions, and two border triangles
+/// on the same three positions are both fin-prone (checked in debug builds: `write_indices`
+/// relies on it to copy the others without a look).
+fn only_fin_prone_triangles_meet<J: CacheIndex>(data: &super::Region, indices: &[J]) -> bool {
+    let active_triangles = indices.len() / 3;
+    if (0..active_triangles as u32).any(|t| oriented_triangle(data, indices, t).is_none()) {
+        return false;
+    }
+    let prone: std::collections::HashSet<u32> = active(&data.fin_prone, active_triangles)
         .iter()
         .copied()
         .collect();
-    indices.chunks_exact(3).enumerate().all(|(t, tri)| {
-        let [a, b, c] = [0, 1, 2].map(|k| data.position_of(tri[k].into()));
-        border.contains(&(t as u32)) || (a != b && b != c && a != c)
+    let mut seen = std::collections::HashMap::new();
+    active(&data.border, active_triangles).iter().all(|&t| {
+        let (key, _) = oriented_triangle(data, indices, t).expect("checked above");
+        match seen.insert(key, t) {
+            Some(other) => prone.contains(&t) && prone.contains(&other),
+            None => true,
+        }
     })
 }
 

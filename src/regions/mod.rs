@@ -141,6 +141,10 @@ pub struct Region {
     pub(crate) global: Vec<u32>,
     /// Triangles with a foreign corner, increasing.
     pub(crate) border: Vec<u32>,
+    /// The border triangles that may, at some mix of levels, sit on the same three positions
+    /// as another border triangle (a fin, or a copy), increasing: the only ones
+    /// `write_indices` has to look at (see [`fin_prone`]). Usually empty.
+    pub(crate) fin_prone: Vec<u32>,
     /// Where this region's steps move other regions' foreign corners, sorted by step.
     pub(crate) front_events: Vec<FrontEvent>,
     /// Regions whose vertices appear in this region's triangles.
@@ -350,6 +354,18 @@ impl RegionMesh {
             events.sort_unstable_by_key(|e: &FrontEvent| (e.step, e.region, e.corner));
             region.front_events = events;
         }
+        // Each vertex's last representative (its chain's root), by position.
+        let root_at: Vec<u32> = (0..mesh.vertex_count() as u32)
+            .map(|mut v| {
+                while moves[v as usize].0 != u32::MAX {
+                    v = moves[v as usize].1;
+                }
+                weld.remap[v as usize]
+            })
+            .collect();
+        for (r, region) in regions.iter_mut().enumerate() {
+            region.fin_prone = fin_prone(region, r as u32, &region_of, &weld.remap, &root_at);
+        }
         Ok(Self {
             partition: Partition::from_region_of(region_of, count),
             regions,
@@ -387,6 +403,7 @@ impl RegionMesh {
                 r.mesh.memory_bytes()
                     + r.global.len() * 4
                     + r.border.len() * 4
+                    + r.fin_prone.len() * 4
                     + r.front_events.len() * size_of::<FrontEvent>()
             })
             .sum()
@@ -498,6 +515,7 @@ fn build_region(
         mesh: built.mesh,
         global,
         border: Vec::new(),
+        fin_prone: Vec::new(),
         front_events: Vec::new(),
         neighbors: Vec::new(),
         position_of: Vec::new(),
@@ -645,6 +663,77 @@ fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
     }
 }
 
+/// The border triangles of region `r` that may ever need `write_indices`'s fin check.
+///
+/// A border triangle never loses its area: it is owned by `r`, so it has two corners in `r`
+/// or corners in three regions, and corners in different regions never meet (a foreign
+/// corner's representatives stay in their own region, and seam copies share one), while two
+/// corners in `r` meet only through a collapse of `r` along their edge, which removes the
+/// triangle. Two border triangles can still come to sit on the same three positions, a fin,
+/// when a neighbour merges their foreign corners (say the two apexes across an edge of `r`
+/// that has the same neighbour on both sides). That takes, at some level of `r`, the same
+/// representatives in `r` and, for each foreign corner, a corner of the same region whose
+/// chain of representatives ends at the same place (chains that meet share their end). This
+/// walks `r`'s levels and marks every border triangle that meets another on that key at
+/// some level; the neighbours' levels are covered by comparing chain ends.
+///
+/// `at[v]`: the position of source vertex `v`; `root_at[v]`: the position of its last
+/// representative.
+fn fin_prone(region: &Region, r: u32, region_of: &[u32], at: &[u32], root_at: &[u32]) -> Vec<u32> {
+    if region.border.len() < 2 {
+        return Vec::new();
+    }
+    let key_of = |v: u32| -> u64 {
+        let g = region.global[v as usize] as usize;
+        let owner = region_of[g];
+        let p = if owner == r { at[g] } else { root_at[g] };
+        u64::from(owner) << 32 | u64::from(p)
+    };
+    let mut cache = crate::multires::PolygonCache::new(&region.mesh);
+    let mut prone = vec![false; region.border.len()];
+    let mut last = vec![[u32::MAX; 3]; region.border.len()];
+    let mut keyed: Vec<([u64; 3], usize)> = Vec::new();
+    loop {
+        let indices = cache.indices();
+        let active = region
+            .border
+            .partition_point(|&t| 3 * (t as usize) < indices.len());
+        // A triangle leaving the prefix meets no new one: only rewrites matter.
+        let mut changed = false;
+        for (slot, &t) in last.iter_mut().zip(&region.border[..active]) {
+            let t = 3 * t as usize;
+            let tri = [indices[t], indices[t + 1], indices[t + 2]];
+            changed |= *slot != tri;
+            *slot = tri;
+        }
+        if changed {
+            keyed.clear();
+            keyed.extend(last[..active].iter().enumerate().map(|(i, tri)| {
+                let mut key = tri.map(key_of);
+                key.sort_unstable();
+                (key, i)
+            }));
+            keyed.sort_unstable();
+            for same in keyed.chunk_by(|a, b| a.0 == b.0) {
+                if same.len() > 1 {
+                    for &(_, i) in same {
+                        prone[i] = true;
+                    }
+                }
+            }
+        }
+        if !cache.coarsen(&region.mesh) {
+            break;
+        }
+    }
+    region
+        .border
+        .iter()
+        .zip(&prone)
+        .filter_map(|(&t, &p)| p.then_some(t))
+        .collect()
+}
+
 /// Finds the region's foreign corners and the chain of representatives of each, adding the
 /// representatives to the local vertex table where they are missing.
 fn link_border(
@@ -712,4 +801,64 @@ fn link_border(
     } else {
         weld.remap
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::test_grid;
+
+    /// `fin_prone` marks the border triangles that could meet: here the two triangles on
+    /// region 0's edge 5-6, whose apexes 2 and 9 are both in region 1. With region 1 free
+    /// to merge everything (every chain ending at one place) they could become a fin;
+    /// with chains that never meet, and with the chains the build made, nothing is marked.
+    ///
+    /// ```text
+    ///  0 -- 1 -- 2 -- 3      region 1: every vertex but 5 and 6
+    ///  |    |    |    |
+    ///  4 -- 5 == 6 -- 7      region 0: 5 and 6
+    ///  |    |    |    |
+    ///  8 -- 9 -- 10-- 11
+    /// ```
+    #[test]
+    fn fin_prone_marks_triangles_whose_foreign_corners_can_merge() {
+        let mut mesh = test_grid(4, |_, _| 0.0);
+        mesh.positions.truncate(12);
+        mesh.indices = Vec::new();
+        for z in 0..2u32 {
+            for x in 0..3u32 {
+                let i = z * 4 + x;
+                mesh.indices
+                    .extend_from_slice(&[i, i + 4, i + 1, i + 1, i + 4, i + 5]);
+            }
+        }
+        let ids: Vec<u32> = (0..12).map(|v| u32::from(v != 5 && v != 6)).collect();
+        let (partition, _) = Partition::from_ids(&mesh, &ids).unwrap();
+        let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+        let r0 = partition.region_of()[5];
+        let region = &regions.regions()[r0 as usize];
+        let at: Vec<u32> = (0..12).collect();
+        let on_edge: Vec<u32> = region
+            .border
+            .iter()
+            .copied()
+            .filter(|&t| {
+                let tri = &region.mesh.full_indices()[3 * t as usize..3 * t as usize + 3];
+                let global: Vec<u32> = tri.iter().map(|&v| region.global[v as usize]).collect();
+                global.contains(&5) && global.contains(&6)
+            })
+            .collect();
+        assert_eq!(on_edge.len(), 2, "two border triangles on edge 5-6");
+        // Every chain of region 1 ends at vertex 0.
+        let one_root: Vec<u32> = (0..12)
+            .map(|v| if ids[v] == 1 { 0 } else { v as u32 })
+            .collect();
+        let marked = fin_prone(region, r0, partition.region_of(), &at, &one_root);
+        for t in &on_edge {
+            assert!(marked.contains(t), "{on_edge:?} not in {marked:?}");
+        }
+        // Chains that never meet: nothing.
+        assert!(fin_prone(region, r0, partition.region_of(), &at, &at).is_empty());
+        assert_eq!(region.fin_prone, Vec::<u32>::new());
+    }
 }
