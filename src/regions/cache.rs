@@ -316,8 +316,8 @@ impl RegionCaches {
         self.caches[region].level()
     }
 
-    /// Triangles of a region at its current level (border triangles that became degenerate
-    /// are counted here but not written).
+    /// Triangles of a region at its current level (fins, which only fin-prone regions can
+    /// have, are counted here but not written).
     ///
     /// # Panics
     /// Panics when `region` is out of range.
@@ -388,7 +388,9 @@ impl RegionCaches {
     /// local vertex table ([`Region::progressive_mesh`](super::Region::progressive_mesh)),
     /// and clears its dirty flag. Foreign corners hold their current representatives (kept
     /// up to date by [`set_triangle_count`](Self::set_triangle_count)); border triangles that
-    /// became degenerate are skipped. Returns the number of triangles written.
+    /// became "fins" (two on the same three positions, which only regions with fin-prone border
+    /// triangles can have: none in practice) are cancelled, and no triangle ever loses its
+    /// area. Returns the number of triangles written.
     ///
     /// # Panics
     /// Panics when `region` is out of range or `mesh` is not the mesh the caches were made

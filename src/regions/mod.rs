@@ -14,8 +14,10 @@
 //! - a border triangle's corners in other regions ("foreign" corners) are looked up at draw
 //!   time: each one is replaced by the vertex that represents it in its own region at that
 //!   region's current level. Both triangles on any edge see the same representatives, so the
-//!   border stays watertight whatever levels the neighbours have; a border triangle that
-//!   becomes degenerate is not emitted.
+//!   border stays watertight whatever levels the neighbours have. No triangle ever loses its
+//!   area this way (corners in different regions never meet); border triangles that could
+//!   come onto the same three positions as another ("fins") are found when the regions are
+//!   built, and only those are checked when a region is written.
 //!
 //! Each region's sequence is built on the triangles it owns plus, as context, the
 //! neighbours' triangles around its vertices, so the validity checks (link condition, flips)
