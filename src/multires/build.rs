@@ -804,13 +804,15 @@ impl<'a> Builder<'a> {
     }
 }
 
-/// A collapse cost with its last 24 bits of mantissa cleared (kept to about 1e-8, relative),
-/// so that costs that are equal but for rounding (every edge of one length on a flat face
-/// costs the same regularization) compare equal and go to the tie-breaks, instead of to
-/// whichever rounding came out lower.
+/// A collapse cost with its last 36 bits of mantissa cleared (kept to 2⁻¹⁶ ≈ 1.5e-5,
+/// relative), so that costs that are equal but for rounding compare equal and go to the
+/// tie-breaks instead of to whichever rounding came out lower. On a flat face every collapse
+/// costs only the regularization, `1e-7 × edge²`, evaluated from quadrics whose terms are
+/// about `|p|²`: its rounding noise is about `1e-16 × |p|² / (1e-7 × edge²)`, 1e-5 relative
+/// for a vertex 100 edge lengths from the origin.
 #[inline]
 fn settle(cost: f64) -> f64 {
-    f64::from_bits(cost.to_bits() & !((1 << 24) - 1))
+    f64::from_bits(cost.to_bits() & !((1 << 36) - 1))
 }
 
 /// What a build produces: the progressive mesh, and every attribute vertex's move.
