@@ -348,7 +348,7 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
             let (height, triangles, pairs) = compare(&mut app, root);
             assert_eq!(triangles as u64, stats.triangles);
             // What the region meshes draw is what the caches hold: nothing stale, nothing
-            // missing (degenerate border triangles are counted by neither).
+            // missing (cancelled fins, which no partition here has, are counted by neither).
             assert!(!pairs.is_empty());
             assert_eq!(
                 pairs.len() as u64,

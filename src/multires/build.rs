@@ -27,7 +27,9 @@ pub struct BuildOptions {
     /// more can collapse without breaking the surface). Default: `0`, as coarse as possible.
     pub min_triangles: usize,
     /// Stop collapsing when the next collapse's error (relative to the bounding-box diagonal)
-    /// would exceed this. Default: `f32::INFINITY`.
+    /// would exceed this. Default: `f32::INFINITY`. The error table stores errors rounded up
+    /// by up to 0.8 % (16 bits), so [`ProgressiveMesh::level_error`] of the last level may
+    /// read slightly above this bound.
     pub max_error: f32,
     /// How strongly open borders keep their shape, relative to the faces. Default: `10.0`
     /// (meshoptimizer's value).
@@ -159,7 +161,24 @@ impl<'a> Builder<'a> {
     ) -> Self {
         let weld = weld_positions(&mesh.positions);
         let n = mesh.positions.len();
-        let points = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+        // Relative to the bounds' centre: quadric terms grow with |p|², and a cost is their
+        // difference, so coordinates far from the origin would round costs away.
+        let (lo, hi) = mesh
+            .positions
+            .iter()
+            .fold((glam::Vec3::MAX, glam::Vec3::MIN), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        let centre = if lo.cmple(hi).all() {
+            (lo.as_dvec3() + hi.as_dvec3()) * 0.5
+        } else {
+            DVec3::ZERO
+        };
+        let points = mesh
+            .positions
+            .iter()
+            .map(|p| p.as_dvec3() - centre)
+            .collect();
         let tris: Vec<[u32; 3]> = mesh
             .indices
             .chunks_exact(3)
@@ -564,7 +583,8 @@ impl<'a> Builder<'a> {
     /// (most vertices are re-ranked several times before their turn comes).
     fn rank(&mut self, u: u32, validate: bool) {
         self.heap.remove(u);
-        // A step records its corner rewrites in a u16.
+        // Vertices with more than 21,845 triangles are never removed: one step would rewrite
+        // more corners than the narrow records hold, and the ring scans would grow quadratic.
         if !matches!(self.kind[u as usize], Kind::Manifold | Kind::Border)
             || self.adj[u as usize].is_empty()
             || 3 * self.adj[u as usize].len() > usize::from(u16::MAX)
@@ -593,9 +613,11 @@ impl<'a> Builder<'a> {
             candidates.push((e, w));
         }
         self.scratch.neighbors = nu;
-        // Equal costs (0 on a flat face, up to the rounding of f32 coordinates: a distance
-        // below 1e-7 of the diagonal) go to the target that has absorbed the least, so a flat
-        // face does not pour into one vertex.
+        // Equal costs go to the target that has absorbed the least, so a flat face does not
+        // pour into one vertex. Costs are `settle`d, and costs below (1e-7 of the diagonal)²,
+        // the rounding of f32 coordinates, count as 0 (with `regularization = 0` every
+        // flat-face cost is that; with the default it is `1e-7 × edge²`, under this floor only
+        // for edges shorter than 3e-4 of the diagonal, where coordinate rounding decides).
         let quadrics = &self.quadrics;
         let tiny = 1e-14 / (self.inv_diagonal * self.inv_diagonal);
         let level = |e: f64| if e <= tiny { 0.0 } else { e };

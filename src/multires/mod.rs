@@ -156,8 +156,8 @@ impl ProgressiveMesh {
         self.base_triangles as usize
     }
 
-    /// Number of collapses; levels are numbered `0` (full detail) to `level_count() - 1`
-    /// (base mesh).
+    /// Number of levels, the collapses plus one: levels are numbered `0` (full detail) to
+    /// `level_count() - 1` (base mesh).
     #[inline]
     #[must_use]
     pub fn level_count(&self) -> usize {
@@ -198,7 +198,8 @@ impl ProgressiveMesh {
     }
 
     /// Appends vertices that no triangle uses yet (regions add their neighbours'
-    /// representatives this way). `vertices` must have the same attributes as the table.
+    /// representatives this way). `vertices` must have the same attributes as the table. The
+    /// records never name them, so their layout does not change.
     pub(crate) fn append_vertices(&mut self, vertices: &IndexedMesh) {
         fn extend<T: Copy>(to: &mut Option<Vec<T>>, from: &Option<Vec<T>>) {
             if let (Some(to), Some(from)) = (to.as_mut(), from.as_ref()) {
@@ -212,7 +213,6 @@ impl ProgressiveMesh {
         extend(&mut self.vertices.uvs, &vertices.uvs);
         extend(&mut self.vertices.joints, &vertices.joints);
         extend(&mut self.vertices.weights, &vertices.weights);
-        self.records.reserve_vertices(self.vertices.vertex_count());
     }
 
     /// Bytes of the shared data: the vertex table, the index buffer, the records and the

@@ -4,7 +4,8 @@ use glam::DVec3;
 
 /// A weighted sum of squared distances to planes: `Q(p) = pᵀAp + 2bᵀp + c`.
 ///
-/// `weight` is the total area behind the planes; [`Quadric::error`] divides by it, so the
+/// `weight` is the total weight behind the planes (√area per face, edge lengths for borders
+/// and seams, plus the small regularization point); [`Quadric::error`] divides by it, so the
 /// error is a mean squared distance whatever the tessellation (as meshoptimizer does).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Quadric {

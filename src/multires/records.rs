@@ -134,16 +134,6 @@ impl<V: CacheIndex, H: Header, C: Corner> Records<V, H, C> {
         })
     }
 
-    /// The records as plain integers again.
-    fn unpack(&self) -> Unpacked {
-        Unpacked {
-            indices: self.indices.iter().map(|&v| v.into()).collect(),
-            steps: self.steps.iter().map(|h| h.unpack()).collect(),
-            corners: self.corners.iter().map(|c| c.get()).collect(),
-            pairs: self.pairs.iter().map(|p| p.map(Into::into)).collect(),
-        }
-    }
-
     /// Bytes held.
     fn bytes(&self) -> usize {
         self.indices.len() * size_of::<V>()
@@ -261,23 +251,15 @@ pub(crate) enum Layout {
 
 impl Layout {
     /// Packs `records` of a mesh of `vertices` vertices; `None` when not even the wide
-    /// layout holds them (a step that rewrites more than 268 million corners).
+    /// layout holds them (a step that rewrites more than 268 million corners, or 2³¹ corners
+    /// in all; the builder refuses such meshes first).
+    ///
+    /// Vertices appended to the mesh later (a region's neighbours' representatives) are
+    /// never recorded, so the layout stays as it is when the vertex table grows.
     pub(crate) fn new(records: &Unpacked, vertices: usize) -> Option<Self> {
         match Records::pack(records, vertices) {
             Some(narrow) => Some(Self::Narrow(narrow)),
             None => Records::pack(records, vertices).map(Self::Wide),
-        }
-    }
-
-    /// Makes room for `vertices` vertices (the narrow layout addresses 65,535).
-    pub(crate) fn reserve_vertices(&mut self, vertices: usize) {
-        if let Self::Narrow(records) = self
-            && vertices as u64 > <u16 as CacheIndex>::MAX_VERTICES
-        {
-            *self = Self::Wide(
-                Records::pack(&records.unpack(), vertices)
-                    .expect("a wide layout holds what a narrow one did"),
-            );
         }
     }
 
@@ -321,12 +303,6 @@ impl Layout {
             Self::Narrow(r) => r.bytes(),
             Self::Wide(r) => r.bytes(),
         }
-    }
-
-    /// Whether this is the narrow layout.
-    #[cfg(test)]
-    pub(crate) fn is_narrow(&self) -> bool {
-        matches!(self, Self::Narrow(_))
     }
 }
 
@@ -390,22 +366,5 @@ mod tests {
             last = stored;
         }
         assert_eq!(error_from_u16(error_to_u16(0.25)), 0.25);
-    }
-
-    #[test]
-    fn a_narrow_layout_widens_when_vertices_are_added() {
-        let records = Unpacked {
-            indices: vec![0, 1, 2, 2, 1, 3],
-            steps: vec![(1, 1, 1)],
-            corners: vec![2 << 1],
-            pairs: vec![[3, 1]],
-        };
-        let mut layout = Layout::new(&records, 4).unwrap();
-        assert!(layout.is_narrow());
-        let before = layout.indices_as::<u32>();
-        layout.reserve_vertices(70_000);
-        assert!(!layout.is_narrow());
-        assert_eq!(layout.indices_as::<u32>(), before);
-        assert_eq!(layout.removed(), vec![1]);
     }
 }

@@ -80,9 +80,10 @@ impl Cache {
 /// Buffers `write_indices` reuses.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 struct Scratch {
-    /// Border triangles not to emit, by position in `Region::border`.
+    /// Fin-prone triangles not to emit, by position in the active part of
+    /// `Region::fin_prone`.
     skip: Vec<bool>,
-    /// Open-addressing set of border triangles (position in `Region::border` + 1,
+    /// Open-addressing set of fin-prone triangles (position in the active `Region::fin_prone` + 1,
     /// 0 empty), by the hash of their sorted positions.
     table: Vec<u32>,
     /// Each border triangle's sorted positions and winding (`None` when degenerate, never put
@@ -150,7 +151,7 @@ fn key_hash([x, y, z]: [u32; 3]) -> u32 {
 }
 
 /// Marks fins in `skip`: among border triangles with the same positions (`group`: oriented
-/// key, winding, position in `Region::border`; sorted here), opposite pairs cancel, and of
+/// key, winding, position in the active `Region::fin_prone`; sorted here), opposite pairs cancel, and of
 /// what is left one copy stays.
 fn cancel_fins(group: &mut [([u32; 3], bool, u32)], skip: &mut [bool]) {
     group.sort_unstable();

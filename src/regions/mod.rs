@@ -356,15 +356,27 @@ impl RegionMesh {
             events.sort_unstable_by_key(|e: &FrontEvent| (e.step, e.region, e.corner));
             region.front_events = events;
         }
-        // Each vertex's last representative (its chain's root), by position.
-        let root_at: Vec<u32> = (0..mesh.vertex_count() as u32)
-            .map(|mut v| {
-                while moves[v as usize].0 != u32::MAX {
-                    v = moves[v as usize].1;
-                }
-                weld.remap[v as usize]
-            })
-            .collect();
+        // Each vertex's last representative (its chain's root), by position; every chain is
+        // walked once.
+        let mut root = vec![u32::MAX; mesh.vertex_count()];
+        let mut path = Vec::new();
+        for v in 0..mesh.vertex_count() {
+            let mut x = v;
+            while root[x] == u32::MAX && moves[x].0 != u32::MAX {
+                path.push(x);
+                x = moves[x].1 as usize;
+            }
+            let end = if root[x] == u32::MAX {
+                x as u32
+            } else {
+                root[x]
+            };
+            root[x] = end;
+            for p in path.drain(..) {
+                root[p] = end;
+            }
+        }
+        let root_at: Vec<u32> = root.iter().map(|&r| weld.remap[r as usize]).collect();
         for (r, region) in regions.iter_mut().enumerate() {
             region.fin_prone =
                 fin_prone(region, r as u32, &region_of, &moves, &weld.remap, &root_at);
