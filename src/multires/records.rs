@@ -330,6 +330,58 @@ pub(crate) fn error_from_u16(error: u16) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::test_grid;
+    use crate::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+
+    /// The same records in the wide layout.
+    fn widen(records: &Layout) -> Records<u32, u32, u32> {
+        let Layout::Narrow(r) = records else {
+            panic!("a small mesh gets the narrow layout");
+        };
+        Records {
+            indices: r.indices.iter().map(|&v| u32::from(v)).collect(),
+            steps: r
+                .steps
+                .iter()
+                .map(|h| {
+                    let (c, p, removed) = h.unpack();
+                    <u32 as Header>::pack(c, p, removed)
+                })
+                .collect(),
+            corners: r.corners.iter().map(|c| c.get()).collect(),
+            pairs: r.pairs.iter().map(|p| p.map(u32::from)).collect(),
+        }
+    }
+
+    /// Caches walk the narrow and the wide layout alike (meshes past 65,535 vertices get the
+    /// wide one; here it is forced on a small mesh), and the narrow one is smaller.
+    #[test]
+    fn narrow_and_wide_records_walk_alike() {
+        let mesh = test_grid(14, |x, z| ((x * 7 + z * 3) % 5) as f32 * 0.1);
+        let narrow = ProgressiveMesh::build(&mesh, &BuildOptions::default()).unwrap();
+        let mut wide = narrow.clone();
+        wide.records = Layout::Wide(widen(&narrow.records));
+        assert!(narrow.memory_bytes() < wide.memory_bytes());
+        let (mut a, mut b) = (PolygonCache::new(&narrow), PolygonCache::new(&wide));
+        let mut seed = 0x9e37_79b9_u64;
+        for _ in 0..200 {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            let target = (seed >> 33) as usize % (narrow.max_triangles() + 1);
+            assert_eq!(
+                a.set_triangle_count(&narrow, target),
+                b.set_triangle_count(&wide, target)
+            );
+            assert_eq!(a.indices(), b.indices());
+            if seed & 1 == 1 {
+                assert_eq!(a.coarsen(&narrow), b.coarsen(&wide));
+            } else {
+                assert_eq!(a.refine(&narrow), b.refine(&wide));
+            }
+            assert_eq!(a.indices(), b.indices());
+            assert_eq!(a.level(), b.level());
+        }
+        assert_eq!(narrow.full_indices(), wide.full_indices());
+    }
 
     #[test]
     fn headers_and_corners_round_trip() {
