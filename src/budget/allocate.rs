@@ -126,6 +126,9 @@ pub struct Allocator {
     breakpoints: Vec<f64>,
     ranked: Vec<u128>,
     kept: Vec<(u32, u32)>,
+    /// `kept` in release order (hysteresis), and the start of each cost's run in it.
+    released: Vec<(u32, u32)>,
+    runs: Vec<u32>,
 }
 
 /// A region the water-level search has not settled yet: its breakpoints `min/s` and `max/s`,
@@ -531,12 +534,35 @@ impl Allocator {
         if total <= available {
             return;
         }
-        // Most expensive first (current − target, descending), lower index among equals.
-        self.kept.sort_unstable_by_key(|&(target, i)| {
-            let cost = i64::from(out[i as usize]) - i64::from(target);
-            (std::cmp::Reverse(cost), i)
-        });
-        for &(target, i) in &self.kept {
+        // Most expensive first (current − target, descending), lower index among equals. Only
+        // regions kept above their target can give triangles back, at a cost of 1 to ε: for a
+        // small ε a counting sort by cost, stable (`kept` is in index order), else a sort.
+        self.kept.retain(|&(target, i)| out[i as usize] > target);
+        let cost = |&(target, i): &(u32, u32)| out[i as usize] - target;
+        let order: &[(u32, u32)] = if epsilon <= 4096 {
+            let top = epsilon as usize;
+            self.runs.clear();
+            self.runs.resize(top + 2, 0);
+            for k in &self.kept {
+                self.runs[top - cost(k) as usize + 1] += 1;
+            }
+            for c in 1..self.runs.len() {
+                self.runs[c] += self.runs[c - 1];
+            }
+            self.released.clear();
+            self.released.resize(self.kept.len(), (0, 0));
+            for k in &self.kept {
+                let slot = &mut self.runs[top - cost(k) as usize];
+                self.released[*slot as usize] = *k;
+                *slot += 1;
+            }
+            &self.released
+        } else {
+            self.kept
+                .sort_unstable_by_key(|k| (std::cmp::Reverse(cost(k)), k.1));
+            &self.kept
+        };
+        for &(target, i) in order {
             if total <= available {
                 break;
             }
@@ -758,6 +784,73 @@ mod tests {
         )
         .unwrap();
         assert_eq!(out, vec![4, 3, 3]); // ties go to the lower index
+    }
+
+    /// Hysteresis releases the kept regions in the documented order (cost descending, then
+    /// index) through either path: the counting sort for ε ≤ 4096 and the sort above.
+    #[test]
+    fn hysteresis_release_order_is_the_same_on_both_paths() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        let mut released = 0;
+        for epsilon in [1u32, 3, 8, 100, 4096, 4097, 9000] {
+            for _ in 0..20 {
+                let n = 50 + next(400) as usize;
+                let mut regions: Vec<RegionInput> = (0..n)
+                    .map(|_| region((1 + next(1000)) as f32, next(5) as u32, 20_000))
+                    .collect();
+                let params = AllocationParams {
+                    budget: 100 * n as u32,
+                    alpha: 1.0,
+                    hysteresis: epsilon,
+                    ..Default::default()
+                };
+                let mut targets = Vec::new();
+                let no_hysteresis = AllocationParams {
+                    hysteresis: 0,
+                    ..params
+                };
+                allocate(&no_hysteresis, &regions, &mut targets).unwrap();
+                for (r, &t) in regions.iter_mut().zip(&targets) {
+                    // Mostly above the target, so keeping them overruns the budget.
+                    let d = next(u64::from(epsilon) + 1) as u32;
+                    r.current = if next(4) == 0 {
+                        t.saturating_sub(d)
+                    } else {
+                        t + d
+                    };
+                }
+                // The rule, written out.
+                let mut expected = targets.clone();
+                let mut kept = Vec::new();
+                for (i, (r, p)) in regions.iter().zip(expected.iter_mut()).enumerate() {
+                    let in_bounds = (r.min..=r.max).contains(&r.current);
+                    if in_bounds && r.current != *p && r.current.abs_diff(*p) <= epsilon {
+                        kept.push((i64::from(r.current) - i64::from(*p), i, *p));
+                        *p = r.current;
+                    }
+                }
+                let mut total: u64 = expected.iter().map(|&p| u64::from(p)).sum();
+                kept.sort_by_key(|&(cost, i, _)| (std::cmp::Reverse(cost), i));
+                for (cost, i, target) in kept {
+                    if total <= u64::from(params.available()) || cost <= 0 {
+                        break;
+                    }
+                    total -= cost as u64;
+                    expected[i] = target;
+                    released += 1;
+                }
+                let mut out = Vec::new();
+                allocate(&params, &regions, &mut out).unwrap();
+                assert_eq!(out, expected, "ε = {epsilon}");
+            }
+        }
+        assert!(released > 100, "the cases release kept regions: {released}");
     }
 
     #[test]
