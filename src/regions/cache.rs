@@ -274,18 +274,17 @@ fn only_fin_prone_triangles_meet<J: CacheIndex>(data: &super::Region, indices: &
     if (0..active_triangles as u32).any(|t| oriented_triangle(data, indices, t).is_none()) {
         return false;
     }
-    let prone: std::collections::HashSet<u32> = active(&data.fin_prone, active_triangles)
+    let prone = active(&data.fin_prone, active_triangles);
+    let mut keys: Vec<([u32; 3], bool)> = active(&data.border, active_triangles)
         .iter()
-        .copied()
+        .map(|&t| {
+            let (key, _) = oriented_triangle(data, indices, t).expect("checked above");
+            (key, prone.binary_search(&t).is_ok())
+        })
         .collect();
-    let mut seen = std::collections::HashMap::new();
-    active(&data.border, active_triangles).iter().all(|&t| {
-        let (key, _) = oriented_triangle(data, indices, t).expect("checked above");
-        match seen.insert(key, t) {
-            Some(other) => prone.contains(&t) && prone.contains(&other),
-            None => true,
-        }
-    })
+    keys.sort_unstable();
+    keys.chunk_by(|a, b| a.0 == b.0)
+        .all(|same| same.len() == 1 || same.iter().all(|k| k.1))
 }
 
 impl RegionCaches {
