@@ -3,7 +3,6 @@
 
 use bevy::diagnostic::DiagnosticsStore;
 use bevy::prelude::*;
-use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodViewport, CountInBudget, LodPriority, LodRegion,
     MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec, PolygonBudget, diagnostics,
@@ -11,26 +10,12 @@ use bevy_aslod::plugin::{
 use bevy_aslod::regions::{GridPlane, Partition};
 use glam::Vec3;
 
-/// A bumpy `n`×`n`-vertex terrain patch of size 16×16 around the origin.
-fn terrain(n: u32) -> IndexedMesh {
-    let mut positions = Vec::new();
-    for z in 0..n {
-        for x in 0..n {
-            let (fx, fz) = (x as f32, z as f32);
-            let y = ((fx * 0.7).sin() * (fz * 0.9).cos() + (fx * 0.31 + fz * 0.17).sin()) * 0.6;
-            let s = 16.0 / (n - 1) as f32;
-            positions.push(Vec3::new(fx * s - 8.0, y, fz * s - 8.0));
-        }
-    }
-    let mut indices = Vec::new();
-    for z in 0..n - 1 {
-        for x in 0..n - 1 {
-            let i = z * n + x;
-            indices.extend_from_slice(&[i, i + n, i + 1, i + 1, i + n, i + n + 1]);
-        }
-    }
-    IndexedMesh::new(positions, indices)
-}
+/// The benches' scene: its bumpy 16×16 patch is the terrain here.
+#[allow(dead_code)]
+#[path = "../benches/common/scene.rs"]
+mod scene;
+
+use scene::patch as terrain;
 
 fn asset() -> MultiresMesh {
     let mesh = terrain(25);

@@ -1,5 +1,5 @@
 //! The scene the plugin bench and the core-only frame bench share (no Bevy): a bumpy patch,
-//! where the copies stand, and the camera's path over them.
+//! where the copies stand, and the camera's path over them. The plugin tests use the patch.
 
 use bevy_aslod::mesh::IndexedMesh;
 use glam::Vec3;

@@ -542,7 +542,7 @@ impl Allocator {
         let order: &[(u32, u32)] = if epsilon <= 4096 {
             let top = epsilon as usize;
             self.runs.clear();
-            self.runs.resize(top + 2, 0);
+            self.runs.resize(top + 1, 0);
             for k in &self.kept {
                 self.runs[top - cost(k) as usize + 1] += 1;
             }
@@ -567,9 +567,6 @@ impl Allocator {
                 break;
             }
             let p = &mut out[i as usize];
-            if *p <= target {
-                break; // sorted: no kept region above its target is left
-            }
             total -= u64::from(*p - target);
             *p = target;
             report.kept -= 1;

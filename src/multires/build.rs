@@ -163,17 +163,10 @@ impl<'a> Builder<'a> {
         let n = mesh.positions.len();
         // Relative to the bounds' centre: quadric terms grow with |p|², and a cost is their
         // difference, so coordinates far from the origin would round costs away.
-        let (lo, hi) = mesh
-            .positions
-            .iter()
-            .fold((glam::Vec3::MAX, glam::Vec3::MIN), |(lo, hi), &p| {
-                (lo.min(p), hi.max(p))
-            });
-        let centre = if lo.cmple(hi).all() {
+        let bounds = mesh.bounds();
+        let centre = bounds.map_or(DVec3::ZERO, |(lo, hi)| {
             (lo.as_dvec3() + hi.as_dvec3()) * 0.5
-        } else {
-            DVec3::ZERO
-        };
+        });
         let points = mesh
             .positions
             .iter()
@@ -190,7 +183,7 @@ impl<'a> Builder<'a> {
                 adj[weld.remap[v as usize] as usize].push(t as u32);
             }
         }
-        let diagonal = mesh.diagonal() as f64;
+        let diagonal = bounds.map_or(0.0, |(lo, hi)| f64::from((hi - lo).length()));
         let mut builder = Self {
             mesh,
             options,
@@ -583,8 +576,9 @@ impl<'a> Builder<'a> {
     /// (most vertices are re-ranked several times before their turn comes).
     fn rank(&mut self, u: u32, validate: bool) {
         self.heap.remove(u);
-        // Vertices with more than 21,845 triangles are never removed: one step would rewrite
-        // more corners than the narrow records hold, and the ring scans would grow quadratic.
+        // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
+        // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
+        // Steps past 4,095 corners only make the records wide.
         if !matches!(self.kind[u as usize], Kind::Manifold | Kind::Border)
             || self.adj[u as usize].is_empty()
             || 3 * self.adj[u as usize].len() > usize::from(u16::MAX)
@@ -746,7 +740,8 @@ impl<'a> Builder<'a> {
     /// Triangles from `owned` on are context: they took part in the checks but are neither
     /// laid out nor recorded.
     ///
-    /// `None` when a step rewrites more corners than a record header can count (268 million).
+    /// `None` when not even the wide records hold the steps (2³¹ corners in all, or a step
+    /// past 268 million corners); `build` refuses such meshes before.
     fn finish(self, owned: usize) -> Option<Built> {
         let tri_count = self.tris.len();
         let mut slot = vec![u32::MAX; tri_count];
@@ -803,9 +798,14 @@ impl<'a> Builder<'a> {
             ));
             errors.push(error_to_u16(c.error));
         }
+        let source = self.mesh;
         let vertices = IndexedMesh {
+            positions: source.positions.clone(),
+            normals: source.normals.clone(),
+            uvs: source.uvs.clone(),
+            joints: source.joints.clone(),
+            weights: source.weights.clone(),
             indices: Vec::new(),
-            ..self.mesh.clone()
         };
         let records = Unpacked {
             indices,
@@ -876,7 +876,7 @@ pub(crate) fn build(
             MeshError::parse(
                 "mesh",
                 "index buffer",
-                "a vertex is shared by more than 268 million triangles",
+                "its collapse records do not fit 32-bit records",
             )
         })
 }

@@ -78,18 +78,13 @@ impl Cache {
 }
 
 /// Buffers `write_indices` reuses.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default)]
 struct Scratch {
     /// Fin-prone triangles not to emit, by position in the active part of
     /// `Region::fin_prone`.
     skip: Vec<bool>,
-    /// Open-addressing set of fin-prone triangles (position in the active `Region::fin_prone` + 1,
-    /// 0 empty), by the hash of their sorted positions.
-    table: Vec<u32>,
-    /// Each border triangle's sorted positions and winding (`None` when degenerate, never put
-    /// in `table`).
-    keys: Vec<Option<([u32; 3], bool)>>,
-    /// Border triangles by exact oriented key, when some share their positions.
+    /// The active fin-prone triangles by oriented key: sorted positions, winding, position
+    /// in the active part of `Region::fin_prone`.
     group: Vec<([u32; 3], bool, u32)>,
 }
 
@@ -141,13 +136,6 @@ fn oriented_triangle<J: CacheIndex>(
         data.position_of(corners[1].into()),
         data.position_of(corners[2].into()),
     ])
-}
-
-/// A hash of a sorted position triple: equal triples hash equally.
-#[inline]
-fn key_hash([x, y, z]: [u32; 3]) -> u32 {
-    let h = x.wrapping_mul(0x9E37_79B1) ^ y.wrapping_mul(0x85EB_CA77) ^ z.wrapping_mul(0xC2B2_AE3D);
-    h ^ (h >> 15)
 }
 
 /// Marks fins in `skip`: among border triangles with the same positions (`group`: oriented
@@ -203,54 +191,18 @@ impl Scratch {
         }
         // Fin-prone triangles whose positions are now the same as another's: "fins" (the
         // same three positions twice, once each way round) cancel in pairs, and of what is
-        // left one copy stays. One pass with a small open-addressing set of the position
-        // triples; the sort-based `cancel_fins` runs only when two are equal.
+        // left one copy stays.
         let skip = &mut self.skip;
         skip.clear();
         skip.resize(prone.len(), false);
-        let slots = (2 * prone.len()).next_power_of_two().max(16);
-        let mask = slots - 1;
-        let table = &mut self.table;
-        table.clear();
-        table.resize(slots, 0);
-        let keys = &mut self.keys;
-        keys.clear();
-        let mut repeated = false;
+        self.group.clear();
         for (i, &t) in prone.iter().enumerate() {
-            let oriented = oriented_triangle(data, indices, t);
-            keys.push(oriented);
-            let Some((key, _)) = oriented else {
-                skip[i] = true; // no area (never happens, see above; checked in debug builds)
-                continue;
-            };
-            let mut h = key_hash(key) as usize & mask;
-            loop {
-                match table[h] {
-                    0 => {
-                        table[h] = i as u32 + 1;
-                        break;
-                    }
-                    e if keys[e as usize - 1].is_some_and(|(k, _)| k == key) => {
-                        repeated = true;
-                        break;
-                    }
-                    _ => h = (h + 1) & mask,
-                }
+            match oriented_triangle(data, indices, t) {
+                Some((key, forward)) => self.group.push((key, forward, i as u32)),
+                None => skip[i] = true, // no area (never happens, see above; checked in debug builds)
             }
         }
-        if repeated {
-            self.group.clear();
-            self.group.extend(
-                keys.iter()
-                    .enumerate()
-                    .filter_map(|(i, k)| k.map(|(key, fwd)| (key, fwd, i as u32))),
-            );
-            cancel_fins(&mut self.group, skip);
-        }
-        if !skip.contains(&true) {
-            extend(out, indices);
-            return;
-        }
+        cancel_fins(&mut self.group, skip);
         // Triangles are copied in runs; skipped fin-prone triangles are left out.
         out.reserve(indices.len());
         let mut next = 0; // first triangle not yet copied or checked

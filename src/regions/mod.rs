@@ -221,9 +221,9 @@ impl Region {
     #[must_use]
     pub fn obb(&self) -> crate::budget::Obb {
         use crate::budget::{Obb, fit_aabb, fit_obb};
-        let points: Vec<Vec3> = self.own_positions().collect();
-        fit_obb(&points)
-            .or_else(|| fit_aabb(&points))
+        let points = &self.mesh.vertices().positions[..self.own_vertices];
+        fit_obb(points)
+            .or_else(|| fit_aabb(points))
             .unwrap_or_else(|| Obb::from_aabb(self.bounds.0, self.bounds.1))
     }
 
@@ -356,27 +356,16 @@ impl RegionMesh {
             events.sort_unstable_by_key(|e: &FrontEvent| (e.step, e.region, e.corner));
             region.front_events = events;
         }
-        // Each vertex's last representative (its chain's root), by position; every chain is
-        // walked once.
-        let mut root = vec![u32::MAX; mesh.vertex_count()];
-        let mut path = Vec::new();
-        for v in 0..mesh.vertex_count() {
-            let mut x = v;
-            while root[x] == u32::MAX && moves[x].0 != u32::MAX {
-                path.push(x);
-                x = moves[x].1 as usize;
-            }
-            let end = if root[x] == u32::MAX {
-                x as u32
-            } else {
-                root[x]
-            };
-            root[x] = end;
-            for p in path.drain(..) {
-                root[p] = end;
-            }
-        }
-        let root_at: Vec<u32> = root.iter().map(|&r| weld.remap[r as usize]).collect();
+        // Each vertex's last representative (its chain's root), by position: the chains are
+        // a forest whose roots were never removed, so union-find's `find` walks them.
+        let mut parent: Vec<u32> = moves
+            .iter()
+            .enumerate()
+            .map(|(v, &(step, p))| if step == u32::MAX { v as u32 } else { p })
+            .collect();
+        let root_at: Vec<u32> = (0..parent.len() as u32)
+            .map(|v| weld.remap[find(&mut parent, v) as usize])
+            .collect();
         for (r, region) in regions.iter_mut().enumerate() {
             region.fin_prone =
                 fin_prone(region, r as u32, &region_of, &moves, &weld.remap, &root_at);
@@ -782,8 +771,10 @@ fn fin_prone(
     for (i, k) in keys.iter().enumerate() {
         by_key.entry(*k).or_default().push(i);
     }
-    for k in &keys {
-        mark(&by_key, k, &mut prone);
+    for same in by_key.values().filter(|same| same.len() > 1) {
+        for &j in same {
+            prone[j] = true;
+        }
     }
     let mut moved = Vec::new();
     for same_level in events.chunk_by(|a, b| a.0 == b.0) {
