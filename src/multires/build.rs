@@ -76,6 +76,14 @@ enum Kind {
     Pinned,
 }
 
+/// A directed edge's part in the edge quadrics (see `Builder::classify_edges`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum EdgeClass {
+    Inner,
+    Border,
+    Seam,
+}
+
 /// One performed collapse, before the final layout.
 struct Collapse {
     removed: [u32; 2],
@@ -103,6 +111,8 @@ struct Builder<'a> {
     /// The queue: each position's cheapest collapse cost; its target is in `target`.
     heap: IndexedHeap,
     target: Vec<u32>,
+    /// Per position: its queued collapse was the cheapest valid one, not the cheapest.
+    validated: Vec<bool>,
     collapses: Vec<Collapse>,
     rewrites: Vec<Rewrite>,
     moves: Vec<(u32, u32, u32)>,
@@ -115,6 +125,8 @@ struct Builder<'a> {
     inv_diagonal: f64,
     scratch: Scratch,
     candidates: Vec<(f64, u32)>,
+    /// The positions of the triangles around the vertex last collapsed, before it was.
+    moved_ring: Vec<u32>,
 }
 
 /// Buffers reused across collapse evaluations.
@@ -199,6 +211,7 @@ impl<'a> Builder<'a> {
             quadrics: vec![Quadric::default(); n],
             heap: IndexedHeap::new(n),
             target: vec![u32::MAX; n],
+            validated: vec![false; n],
             collapses: Vec::new(),
             rewrites: Vec::new(),
             moves: Vec::new(),
@@ -208,6 +221,7 @@ impl<'a> Builder<'a> {
                 ..Scratch::default()
             },
             candidates: Vec::new(),
+            moved_ring: Vec::new(),
         };
         builder.classify(pinned);
         // Fronts run along the anchors: the vertices given, or else every pinned one.
@@ -296,6 +310,51 @@ impl<'a> Builder<'a> {
         }
     }
 
+    /// What each directed edge (triangle `t`, corner `k` to `k + 1`, at `3t + k`) is: a
+    /// border (no triangle runs the other way along it), a seam (exactly one does, with
+    /// other attribute vertices at either end) or inner. Gathered per position, from the
+    /// edges leaving it and those arriving at it around its triangles.
+    fn classify_edges(&self) -> Vec<EdgeClass> {
+        let mut class = vec![EdgeClass::Inner; 3 * self.tris.len()];
+        // (triangle, corner, far position, corner vertex, far vertex) of the edges leaving,
+        // (triangle, start position, start vertex, end vertex) of those arriving.
+        let mut leaving: Vec<(u32, usize, u32, u32, u32)> = Vec::new();
+        let mut arriving: Vec<(u32, u32, u32, u32)> = Vec::new();
+        for (p, around) in self.adj.iter().enumerate() {
+            let p = p as u32;
+            leaving.clear();
+            arriving.clear();
+            for &t in around {
+                let tri = self.tris[t as usize];
+                for k in 0..3 {
+                    let (v0, v1) = (tri[k], tri[(k + 1) % 3]);
+                    let (p0, p1) = (self.pos[v0 as usize], self.pos[v1 as usize]);
+                    if p0 == p {
+                        leaving.push((t, k, p1, v0, v1));
+                    }
+                    if p1 == p {
+                        arriving.push((t, p0, v0, v1));
+                    }
+                }
+            }
+            for &(t, k, p1, v0, v1) in &leaving {
+                let (mut twins, mut seam) = (0, false);
+                for &(s, start, w0, w1) in &arriving {
+                    if s != t && start == p1 {
+                        twins += 1;
+                        seam |= w0 != v1 || w1 != v0;
+                    }
+                }
+                class[3 * t as usize + k] = match (twins, seam) {
+                    (0, _) => EdgeClass::Border,
+                    (1, true) => EdgeClass::Seam,
+                    _ => EdgeClass::Inner,
+                };
+            }
+        }
+        class
+    }
+
     /// Phase 3: face quadrics, and edge quadrics that hold borders and seams in place.
     fn fill_quadrics(&mut self) {
         for tri in &self.tris {
@@ -320,30 +379,16 @@ impl<'a> Builder<'a> {
         }
         // Border edges: directed edges with no opposite twin. Seam edges: an edge whose two
         // triangles use different attribute vertices at either end.
+        let edges = self.classify_edges();
         for t in 0..self.tris.len() {
             let tri = self.tris[t];
             for k in 0..3 {
                 let (v0, v1, v2) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
                 let (p0, p1) = (self.pos[v0 as usize], self.pos[v1 as usize]);
-                let mut twins = 0;
-                let mut seam = false;
-                for &s in &self.adj[p0 as usize] {
-                    if s as usize == t {
-                        continue;
-                    }
-                    let other = self.tris[s as usize];
-                    for j in 0..3 {
-                        let (w0, w1) = (other[j], other[(j + 1) % 3]);
-                        if self.pos[w0 as usize] == p1 && self.pos[w1 as usize] == p0 {
-                            twins += 1;
-                            seam |= w0 != v1 || w1 != v0;
-                        }
-                    }
-                }
-                let weight = match (twins, seam) {
-                    (0, _) => self.options.border_weight,
-                    (1, true) => 0.5,
-                    _ => continue,
+                let weight = match edges[3 * t + k] {
+                    EdgeClass::Border => self.options.border_weight,
+                    EdgeClass::Seam => 0.5,
+                    EdgeClass::Inner => continue,
                 };
                 let (a, b, c) = (
                     self.points[p0 as usize],
@@ -576,6 +621,16 @@ impl<'a> Builder<'a> {
     /// (most vertices are re-ranked several times before their turn comes).
     fn rank(&mut self, u: u32, validate: bool) {
         self.heap.remove(u);
+        let chosen = self.choose(u, validate);
+        self.validated[u as usize] = validate;
+        if let Some((cost, w)) = chosen {
+            self.target[u as usize] = w;
+            self.heap.set(u, cost.to_bits());
+        }
+    }
+
+    /// The collapse [`rank`](Self::rank) queues for `u`: `(cost, target)`, or `None`.
+    fn choose(&mut self, u: u32, validate: bool) -> Option<(f64, u32)> {
         // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
         // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
         // Steps past 4,095 corners only make the records wide.
@@ -583,7 +638,7 @@ impl<'a> Builder<'a> {
             || self.adj[u as usize].is_empty()
             || 3 * self.adj[u as usize].len() > usize::from(u16::MAX)
         {
-            return;
+            return None;
         }
         let mut nu = std::mem::take(&mut self.scratch.neighbors);
         let mut scratch = std::mem::take(&mut self.scratch);
@@ -591,53 +646,117 @@ impl<'a> Builder<'a> {
         self.scratch = scratch;
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
-        let qu = self.quadrics[u as usize];
         let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
         for &w in &nu {
-            if self.kind[w as usize] == Kind::Pinned
-                || (self.kind[u as usize] == Kind::Border && !self.is_border_edge(u, w))
-                || (front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None))
-            {
+            if front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None) {
                 continue;
             }
-            // The error of moving u onto w, measured against u's planes (everything already
-            // merged into u): meshoptimizer's choice, which beat the merged quadric
-            // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
-            let e = settle(qu.error(self.points[w as usize]));
-            candidates.push((e, w));
+            if let Some(e) = self.candidate_cost(u, w) {
+                candidates.push((e, w));
+            }
         }
         self.scratch.neighbors = nu;
-        // Equal costs go to the target that has absorbed the least, so a flat face does not
-        // pour into one vertex. Costs are `settle`d, and costs below (1e-7 of the diagonal)²,
-        // the rounding of f32 coordinates, count as 0 (with `regularization = 0` every
-        // flat-face cost is that; with the default it is `1e-7 × edge²`, under this floor only
-        // for edges shorter than 3e-4 of the diagonal, where coordinate rounding decides).
-        let quadrics = &self.quadrics;
-        let tiny = 1e-14 / (self.inv_diagonal * self.inv_diagonal);
-        let level = |e: f64| if e <= tiny { 0.0 } else { e };
-        let order = |a: &(f64, u32), b: &(f64, u32)| {
-            level(a.0)
-                .total_cmp(&level(b.0))
-                .then_with(|| {
-                    let weight = |w: u32| quadrics[w as usize].weight();
-                    weight(a.1).total_cmp(&weight(b.1))
-                })
-                .then(a.1.cmp(&b.1))
-        };
         let chosen = if validate {
-            candidates.sort_unstable_by(order);
+            candidates.sort_unstable_by(|a, b| self.order(*a, *b));
             candidates
                 .iter()
                 .copied()
                 .find(|&(_, w)| self.is_valid(u, w))
         } else {
-            candidates.iter().copied().min_by(order)
+            candidates.iter().copied().min_by(|a, b| self.order(*a, *b))
         };
-        if let Some((cost, w)) = chosen {
-            self.target[u as usize] = w;
-            self.heap.set(u, cost.to_bits());
-        }
         self.candidates = candidates;
+        chosen
+    }
+
+    /// The cost of moving `u` onto its neighbour `w`, or `None` when the kinds forbid it
+    /// (the front rule is the caller's).
+    #[inline]
+    fn candidate_cost(&self, u: u32, w: u32) -> Option<f64> {
+        if self.kind[w as usize] == Kind::Pinned
+            || (self.kind[u as usize] == Kind::Border && !self.is_border_edge(u, w))
+        {
+            return None;
+        }
+        // The error of moving u onto w, measured against u's planes (everything already
+        // merged into u): meshoptimizer's choice, which beat the merged quadric
+        // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
+        Some(settle(
+            self.quadrics[u as usize].error(self.points[w as usize]),
+        ))
+    }
+
+    /// The order of two candidates `(cost, target)`, cheapest first.
+    ///
+    /// Equal costs go to the target that has absorbed the least, so a flat face does not
+    /// pour into one vertex. Costs are `settle`d, and costs below (1e-7 of the diagonal)²,
+    /// the rounding of f32 coordinates, count as 0 (with `regularization = 0` every
+    /// flat-face cost is that; with the default it is `1e-7 × edge²`, under this floor only
+    /// for edges shorter than 3e-4 of the diagonal, where coordinate rounding decides).
+    #[inline]
+    fn order(&self, a: (f64, u32), b: (f64, u32)) -> std::cmp::Ordering {
+        let tiny = 1e-14 / (self.inv_diagonal * self.inv_diagonal);
+        let level = |e: f64| if e <= tiny { 0.0 } else { e };
+        let weight = |w: u32| self.quadrics[w as usize].weight();
+        level(a.0)
+            .total_cmp(&level(b.0))
+            .then_with(|| weight(a.1).total_cmp(&weight(b.1)))
+            .then(a.1.cmp(&b.1))
+    }
+
+    /// Brings the queued collapse of `x`, a neighbour of `w` after `u` collapsed onto `w`, up
+    /// to date, doing what [`rank`](Self::rank)`(x, false)` would do (`moved_ring` holds the
+    /// positions around `u` before the collapse).
+    ///
+    /// A vertex that was not next to `u` keeps its triangles, neighbours, quadric and the
+    /// costs of its candidates (points do not move): only `w` changed for it, and `w` only
+    /// lost ground (its quadric weight, the tie-break, grew). Its choice stands. One that was
+    /// next to `u` lost the candidate `u` and may have gained `w` (or `w`'s kind rule may
+    /// have changed); the rest of its candidates are as they were, so if its choice was
+    /// neither it stands unless `w` now beats it. Ranked in full instead: a choice of `w`
+    /// or `u`, one made among the valid candidates only (validity depends on the neighbours'
+    /// triangles, and an unvalidated rank resets it), a vertex out of the queue, and one on
+    /// or next to a front (the front rule looks at the neighbours' triangles).
+    fn rerank(&mut self, x: u32, u: u32, w: u32) {
+        let xi = x as usize;
+        let moved = self.moved_ring.contains(&x);
+        let target = self.target[xi];
+        let front = !self.anchor.is_empty()
+            && (self.touches_anchor(x, None)
+                || (moved && (self.anchor[u as usize] || self.anchor[w as usize])));
+        if target == w
+            || self.validated[xi]
+            || front
+            || (moved && (target == u || self.adj[xi].is_empty() || !self.heap.contains(x)))
+        {
+            self.rank(x, false);
+            return;
+        }
+        if !moved {
+            return;
+        }
+        let Some(cost) = self.candidate_cost(x, w) else {
+            return;
+        };
+        let current = f64::from_bits(self.heap.key(x));
+        if self.order((cost, w), (current, target)).is_lt() {
+            self.target[xi] = w;
+            self.heap.set(x, cost.to_bits());
+        }
+    }
+
+    /// Unit tests check every [`rerank`](Self::rerank) against a full rank.
+    #[cfg(test)]
+    fn check_rerank(&mut self, x: u32) {
+        if self.validated[x as usize] {
+            return;
+        }
+        let queued = self
+            .heap
+            .contains(x)
+            .then(|| (self.heap.key(x), self.target[x as usize]));
+        let fresh = self.choose(x, false).map(|(cost, w)| (cost.to_bits(), w));
+        assert_eq!(queued, fresh, "vertex {x} kept a stale collapse");
     }
 
     /// Phase 5: removes the edge's triangles, moves u's corners to w, records both.
@@ -647,8 +766,11 @@ impl<'a> Builder<'a> {
         let mut removed_count = 0u8;
         let map = std::mem::take(&mut self.scratch.map);
         let adj_u = std::mem::take(&mut self.adj[u as usize]);
+        self.moved_ring.clear();
         for &t in &adj_u {
             let tri = self.tris[t as usize];
+            self.moved_ring
+                .extend(tri.iter().map(|&v| self.pos[v as usize]));
             let on_edge = tri.iter().any(|&v| self.pos[v as usize] == w);
             if on_edge {
                 self.alive[t as usize] = false;
@@ -726,7 +848,9 @@ impl<'a> Builder<'a> {
             self.scratch = scratch;
             self.rank(w, false);
             for &x in &ring {
-                self.rank(x, false);
+                self.rerank(x, u, w);
+                #[cfg(test)]
+                self.check_rerank(x);
             }
             if self.collapses.len().is_multiple_of(4096) {
                 progress(total - self.live_triangles, total);
@@ -884,7 +1008,126 @@ pub(crate) fn build(
 #[cfg(test)]
 mod tests {
     use super::{BuildOptions, build};
-    use crate::mesh::test_grid;
+    use crate::mesh::{IndexedMesh, test_grid};
+
+    /// The per-position edge classification agrees with the definition, edge by edge, on
+    /// meshes with holes (bunny), UV seams (spot) and a hand-made seam and border.
+    #[test]
+    fn edge_classes_match_a_scan_of_every_edge() {
+        use super::{Builder, EdgeClass};
+        let dir =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/testdata/meshes");
+        let mut meshes: Vec<IndexedMesh> = ["spot.obj", "stanford-bunny.obj"]
+            .iter()
+            .filter_map(|name| IndexedMesh::load(dir.join(name)).ok().map(|(m, _)| m))
+            .collect();
+        // Two triangles on the edge 0-1, which the second one runs as 1-3: vertex 1 is shared,
+        // vertices 0 and 3 only share a position, so the edge is a seam (both ways) with the
+        // attribute split at one end only; the other four edges are borders.
+        //   2 --- 1
+        //   |  /  |
+        //  0/3 -- 4
+        let square = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+        ];
+        meshes.push(IndexedMesh::new(
+            square.iter().map(|&p| glam::Vec3::from_array(p)).collect(),
+            vec![0, 1, 2, 3, 4, 1],
+        ));
+        for mesh in &meshes {
+            let options = BuildOptions::default();
+            let builder = Builder::new(mesh, &options, None, None);
+            let classes = builder.classify_edges();
+            // Every directed edge by its two positions: (triangle, start vertex, end vertex).
+            type Edges = Vec<(usize, u32, u32)>;
+            let mut by_positions: std::collections::HashMap<(u32, u32), Edges> = Default::default();
+            for (t, tri) in builder.tris.iter().enumerate() {
+                for k in 0..3 {
+                    let (v0, v1) = (tri[k], tri[(k + 1) % 3]);
+                    let key = (builder.pos[v0 as usize], builder.pos[v1 as usize]);
+                    by_positions.entry(key).or_default().push((t, v0, v1));
+                }
+            }
+            for (t, tri) in builder.tris.iter().enumerate() {
+                for k in 0..3 {
+                    let (v0, v1) = (tri[k], tri[(k + 1) % 3]);
+                    let (p0, p1) = (builder.pos[v0 as usize], builder.pos[v1 as usize]);
+                    let twins: Vec<(u32, u32)> = by_positions
+                        .get(&(p1, p0))
+                        .into_iter()
+                        .flatten()
+                        .filter(|e| e.0 != t)
+                        .map(|e| (e.1, e.2))
+                        .collect();
+                    let expected = match twins.as_slice() {
+                        [] => EdgeClass::Border,
+                        [(w0, w1)] if (*w0, *w1) != (v1, v0) => EdgeClass::Seam,
+                        _ => EdgeClass::Inner,
+                    };
+                    assert_eq!(classes[3 * t + k], expected, "triangle {t} corner {k}");
+                }
+            }
+        }
+        let small = meshes.last().unwrap();
+        let options = BuildOptions::default();
+        let builder = Builder::new(small, &options, None, None);
+        let classes = builder.classify_edges();
+        assert_eq!(classes.iter().filter(|&&c| c == EdgeClass::Seam).count(), 2);
+        assert_eq!(
+            classes.iter().filter(|&&c| c == EdgeClass::Border).count(),
+            4
+        );
+    }
+
+    /// Every incremental re-rank after a collapse leaves the same queued collapse as a full
+    /// rank would (`Builder::check_rerank` asserts it for every vertex around every
+    /// collapse, in test builds): on real meshes with borders and holes (bunny), UV seams
+    /// (spot), sharp creases (fandisk), and on regions, whose fronts take the other path.
+    #[test]
+    fn incremental_reranks_match_full_ranks() {
+        let dir =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/testdata/meshes");
+        let mut checked = 0;
+        for name in ["spot.obj", "fandisk.obj", "stanford-bunny.obj"] {
+            let Ok((mesh, _)) = IndexedMesh::load(dir.join(name)) else {
+                eprintln!("skipped {name}: not found in {}", dir.display());
+                continue;
+            };
+            let options = BuildOptions::default();
+            build(
+                &mesh,
+                &options,
+                None,
+                None,
+                mesh.triangle_count(),
+                &mut |_, _| {},
+            )
+            .unwrap();
+            if name != "stanford-bunny.obj" {
+                let partition = crate::regions::Partition::clusters(&mesh, 8).unwrap();
+                crate::regions::RegionMesh::build(&mesh, &partition, &options).unwrap();
+            }
+            checked += 1;
+        }
+        let grid = test_grid(20, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
+        build(
+            &grid,
+            &BuildOptions::default(),
+            None,
+            None,
+            grid.triangle_count(),
+            &mut |_, _| {},
+        )
+        .unwrap();
+        assert!(
+            checked > 0 || std::env::var_os("CI").is_none(),
+            "no test mesh found"
+        );
+    }
 
     /// On a flat face every collapse costs exactly 0. Equal costs go to the target that has
     /// absorbed the least, so the face does not pour into one vertex (whose averaged quadric

@@ -57,6 +57,18 @@ impl IndexedHeap {
         }
     }
 
+    /// Whether `id` is queued.
+    #[inline]
+    pub(crate) fn contains(&self, id: u32) -> bool {
+        self.slot[id as usize] != u32::MAX
+    }
+
+    /// The key of `id`, meaningful while it is queued.
+    #[inline]
+    pub(crate) fn key(&self, id: u32) -> u64 {
+        self.key[id as usize]
+    }
+
     /// Removes and returns the smallest `(key, id)`.
     pub(crate) fn pop(&mut self) -> Option<(u64, u32)> {
         let &top = self.heap.first()?;
