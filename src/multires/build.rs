@@ -619,9 +619,11 @@ impl<'a> Builder<'a> {
     /// Phase 4: queues the cheapest collapse out of `u`. With `validate`, the cheapest one
     /// that passes every rule; without, the cheapest by cost alone, checked when popped
     /// (most vertices are re-ranked several times before their turn comes).
-    fn rank(&mut self, u: u32, validate: bool) {
+    ///
+    /// `ring`, when given, is `u`'s neighbour positions (the caller has them at hand).
+    fn rank(&mut self, u: u32, validate: bool, ring: Option<&[u32]>) {
         self.heap.remove(u);
-        let chosen = self.choose(u, validate);
+        let chosen = self.choose(u, validate, ring);
         self.validated[u as usize] = validate;
         if let Some((cost, w)) = chosen {
             self.target[u as usize] = w;
@@ -630,7 +632,7 @@ impl<'a> Builder<'a> {
     }
 
     /// The collapse [`rank`](Self::rank) queues for `u`: `(cost, target)`, or `None`.
-    fn choose(&mut self, u: u32, validate: bool) -> Option<(f64, u32)> {
+    fn choose(&mut self, u: u32, validate: bool, ring: Option<&[u32]>) -> Option<(f64, u32)> {
         // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
         // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
         // Steps past 4,095 corners only make the records wide.
@@ -641,9 +643,14 @@ impl<'a> Builder<'a> {
             return None;
         }
         let mut nu = std::mem::take(&mut self.scratch.neighbors);
-        let mut scratch = std::mem::take(&mut self.scratch);
-        self.neighbors_into(u, &mut nu, &mut scratch);
-        self.scratch = scratch;
+        if let Some(ring) = ring {
+            nu.clear();
+            nu.extend_from_slice(ring);
+        } else {
+            let mut scratch = std::mem::take(&mut self.scratch);
+            self.neighbors_into(u, &mut nu, &mut scratch);
+            self.scratch = scratch;
+        }
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
         let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
@@ -729,7 +736,7 @@ impl<'a> Builder<'a> {
             || front
             || (moved && (target == u || self.adj[xi].is_empty() || !self.heap.contains(x)))
         {
-            self.rank(x, false);
+            self.rank(x, false, None);
             return;
         }
         if !moved {
@@ -755,7 +762,9 @@ impl<'a> Builder<'a> {
             .heap
             .contains(x)
             .then(|| (self.heap.key(x), self.target[x as usize]));
-        let fresh = self.choose(x, false).map(|(cost, w)| (cost.to_bits(), w));
+        let fresh = self
+            .choose(x, false, None)
+            .map(|(cost, w)| (cost.to_bits(), w));
         assert_eq!(queued, fresh, "vertex {x} kept a stale collapse");
     }
 
@@ -823,7 +832,7 @@ impl<'a> Builder<'a> {
         self.fill_quadrics();
         for u in 0..self.adj.len() as u32 {
             if self.pos[u as usize] == u {
-                self.rank(u, false);
+                self.rank(u, false, None);
             }
         }
         let total = self.tris.len();
@@ -839,14 +848,14 @@ impl<'a> Builder<'a> {
             }
             // Neighbourhoods change under earlier collapses: check again before acting.
             if !self.is_valid(u, w) {
-                self.rank(u, true);
+                self.rank(u, true, None);
                 continue;
             }
             self.perform(u, w, cost);
             let mut scratch = std::mem::take(&mut self.scratch);
             self.neighbors_into(w, &mut ring, &mut scratch);
             self.scratch = scratch;
-            self.rank(w, false);
+            self.rank(w, false, Some(&ring));
             for &x in &ring {
                 self.rerank(x, u, w);
                 #[cfg(test)]
