@@ -113,6 +113,9 @@ struct Builder<'a> {
     target: Vec<u32>,
     /// Per position: its queued collapse was the cheapest valid one, not the cheapest.
     validated: Vec<bool>,
+    /// Per position: a lower bound on the [`level`](Builder::level)led costs of its other
+    /// candidates (exact when ranked in full).
+    runner_up: Vec<f64>,
     collapses: Vec<Collapse>,
     rewrites: Vec<Rewrite>,
     moves: Vec<(u32, u32, u32)>,
@@ -212,6 +215,7 @@ impl<'a> Builder<'a> {
             heap: IndexedHeap::new(n),
             target: vec![u32::MAX; n],
             validated: vec![false; n],
+            runner_up: vec![f64::INFINITY; n],
             collapses: Vec::new(),
             rewrites: Vec::new(),
             moves: Vec::new(),
@@ -625,14 +629,18 @@ impl<'a> Builder<'a> {
         self.heap.remove(u);
         let chosen = self.choose(u, validate, ring);
         self.validated[u as usize] = validate;
-        if let Some((cost, w)) = chosen {
+        if let Some((cost, w, runner_up)) = chosen {
             self.target[u as usize] = w;
+            self.runner_up[u as usize] = runner_up;
             self.heap.set(u, cost.to_bits());
         }
     }
 
     /// The collapse [`rank`](Self::rank) queues for `u`: `(cost, target)`, or `None`.
-    fn choose(&mut self, u: u32, validate: bool, ring: Option<&[u32]>) -> Option<(f64, u32)> {
+    ///
+    /// Also returns the lowest [`level`](Self::level)led cost among the other candidates
+    /// (`f64::INFINITY` when there is none), which [`rerank`](Self::rerank) uses.
+    fn choose(&mut self, u: u32, validate: bool, ring: Option<&[u32]>) -> Option<(f64, u32, f64)> {
         // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
         // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
         // Steps past 4,095 corners only make the records wide.
@@ -672,6 +680,14 @@ impl<'a> Builder<'a> {
         } else {
             candidates.iter().copied().min_by(|a, b| self.order(*a, *b))
         };
+        let chosen = chosen.map(|(cost, w)| {
+            let runner_up = candidates
+                .iter()
+                .filter(|c| c.1 != w)
+                .map(|c| self.level(c.0))
+                .fold(f64::INFINITY, f64::min);
+            (cost, w, runner_up)
+        });
         self.candidates = candidates;
         chosen
     }
@@ -702,28 +718,35 @@ impl<'a> Builder<'a> {
     /// for edges shorter than 3e-4 of the diagonal, where coordinate rounding decides).
     #[inline]
     fn order(&self, a: (f64, u32), b: (f64, u32)) -> std::cmp::Ordering {
-        let tiny = 1e-14 / (self.inv_diagonal * self.inv_diagonal);
-        let level = |e: f64| if e <= tiny { 0.0 } else { e };
         let weight = |w: u32| self.quadrics[w as usize].weight();
-        level(a.0)
-            .total_cmp(&level(b.0))
+        self.level(a.0)
+            .total_cmp(&self.level(b.0))
             .then_with(|| weight(a.1).total_cmp(&weight(b.1)))
             .then(a.1.cmp(&b.1))
+    }
+
+    /// A cost as [`order`](Self::order) compares it: below the floor, 0.
+    #[inline]
+    fn level(&self, cost: f64) -> f64 {
+        let tiny = 1e-14 / (self.inv_diagonal * self.inv_diagonal);
+        if cost <= tiny { 0.0 } else { cost }
     }
 
     /// Brings the queued collapse of `x`, a neighbour of `w` after `u` collapsed onto `w`, up
     /// to date, doing what [`rank`](Self::rank)`(x, false)` would do (`moved_ring` holds the
     /// positions around `u` before the collapse).
     ///
-    /// A vertex that was not next to `u` keeps its triangles, neighbours, quadric and the
-    /// costs of its candidates (points do not move): only `w` changed for it, and `w` only
-    /// lost ground (its quadric weight, the tie-break, grew). Its choice stands. One that was
+    /// Points do not move, and only `w`'s quadric changed, so every candidate of `x` costs
+    /// what it did; `w` only lost ground (its weight, the tie-break, grew). A vertex that was
+    /// not next to `u` keeps its triangles and candidates: its choice stands. One that was
     /// next to `u` lost the candidate `u` and may have gained `w` (or `w`'s kind rule may
-    /// have changed); the rest of its candidates are as they were, so if its choice was
-    /// neither it stands unless `w` now beats it. Ranked in full instead: a choice of `w`
-    /// or `u`, one made among the valid candidates only (validity depends on the neighbours'
-    /// triangles, and an unvalidated rank resets it), a vertex out of the queue, and one on
-    /// or next to a front (the front rule looks at the neighbours' triangles).
+    /// have changed): if its choice was neither, the rest of its candidates are as they
+    /// were, so the choice stands unless `w` now beats it. A choice of `w` stands while its
+    /// cost stays below every other candidate's (`runner_up`), since weights only break
+    /// ties. Ranked in full instead: a choice of `w` that could tie, a choice of `u`, one
+    /// made among the valid candidates only (validity depends on the neighbours' triangles,
+    /// and an unvalidated rank resets it), a vertex out of the queue, and one on or next to a
+    /// front (the front rule looks at the neighbours' triangles).
     fn rerank(&mut self, x: u32, u: u32, w: u32) {
         let xi = x as usize;
         let moved = self.moved_ring.contains(&x);
@@ -731,15 +754,23 @@ impl<'a> Builder<'a> {
         let front = !self.anchor.is_empty()
             && (self.touches_anchor(x, None)
                 || (moved && (self.anchor[u as usize] || self.anchor[w as usize])));
-        if target == w
-            || self.validated[xi]
-            || front
-            || (moved && (target == u || self.adj[xi].is_empty() || !self.heap.contains(x)))
-        {
+        if self.validated[xi] || front || !self.heap.contains(x) {
             self.rank(x, false, None);
             return;
         }
+        if target == w {
+            // Its cost to w is as it was; w's weight only matters against an equal cost.
+            match self.candidate_cost(x, w) {
+                Some(cost) if self.level(cost) < self.runner_up[xi] => {}
+                _ => self.rank(x, false, None),
+            }
+            return;
+        }
         if !moved {
+            return;
+        }
+        if target == u || self.adj[xi].is_empty() {
+            self.rank(x, false, None);
             return;
         }
         let Some(cost) = self.candidate_cost(x, w) else {
@@ -749,10 +780,14 @@ impl<'a> Builder<'a> {
         if self.order((cost, w), (current, target)).is_lt() {
             self.target[xi] = w;
             self.heap.set(x, cost.to_bits());
+            self.runner_up[xi] = self.level(current);
+        } else {
+            self.runner_up[xi] = self.runner_up[xi].min(self.level(cost));
         }
     }
 
-    /// Unit tests check every [`rerank`](Self::rerank) against a full rank.
+    /// Unit tests check every [`rerank`](Self::rerank) against a full rank (and that the
+    /// runner-up bound holds).
     #[cfg(test)]
     fn check_rerank(&mut self, x: u32) {
         if self.validated[x as usize] {
@@ -762,9 +797,14 @@ impl<'a> Builder<'a> {
             .heap
             .contains(x)
             .then(|| (self.heap.key(x), self.target[x as usize]));
-        let fresh = self
-            .choose(x, false, None)
-            .map(|(cost, w)| (cost.to_bits(), w));
+        let fresh = self.choose(x, false, None);
+        if let Some((_, _, runner_up)) = fresh {
+            assert!(
+                self.runner_up[x as usize] <= runner_up,
+                "vertex {x}: the runner-up bound is above the runner-up"
+            );
+        }
+        let fresh = fresh.map(|(cost, w, _)| (cost.to_bits(), w));
         assert_eq!(queued, fresh, "vertex {x} kept a stale collapse");
     }
 
