@@ -759,10 +759,12 @@ impl<'a> Builder<'a> {
             return;
         }
         if target == w {
-            // Its cost to w is as it was; w's weight only matters against an equal cost.
-            match self.candidate_cost(x, w) {
-                Some(cost) if self.level(cost) < self.runner_up[xi] => {}
-                _ => self.rank(x, false, None),
+            // Its cost to w is as it was (the queue's key); w's weight only matters against an
+            // equal cost. Only the edge x-w of a vertex next to u may have changed its kind.
+            let cost = f64::from_bits(self.heap.key(x));
+            let allowed = !moved || self.kind[xi] != Kind::Border || self.is_border_edge(x, w);
+            if !(allowed && self.level(cost) < self.runner_up[xi]) {
+                self.rank(x, false, None);
             }
             return;
         }
