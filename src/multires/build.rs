@@ -1142,42 +1142,59 @@ mod tests {
     fn incremental_reranks_match_full_ranks() {
         let dir =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/testdata/meshes");
-        let mut checked = 0;
+        let options = BuildOptions::default();
+        let build_all = |mesh: &IndexedMesh| {
+            let n = mesh.triangle_count();
+            build(mesh, &options, None, None, n, &mut |_, _| {}).unwrap();
+        };
         for name in ["spot.obj", "fandisk.obj", "stanford-bunny.obj"] {
-            let Ok((mesh, _)) = IndexedMesh::load(dir.join(name)) else {
-                eprintln!("skipped {name}: not found in {}", dir.display());
-                continue;
-            };
-            let options = BuildOptions::default();
-            build(
-                &mesh,
-                &options,
-                None,
-                None,
-                mesh.triangle_count(),
-                &mut |_, _| {},
-            )
-            .unwrap();
+            let (mesh, _) = IndexedMesh::load(dir.join(name)).expect("a test mesh");
+            build_all(&mesh);
             if name != "stanford-bunny.obj" {
                 let partition = crate::regions::Partition::clusters(&mesh, 8).unwrap();
                 crate::regions::RegionMesh::build(&mesh, &partition, &options).unwrap();
             }
-            checked += 1;
         }
+        // A bumpy grid; the same with a UV seam down its middle (the middle column's vertices
+        // doubled, the right half using the copies); a fin of three triangles on one edge
+        // beside a separate quad.
         let grid = test_grid(20, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
-        build(
-            &grid,
-            &BuildOptions::default(),
-            None,
-            None,
-            grid.triangle_count(),
-            &mut |_, _| {},
-        )
-        .unwrap();
-        assert!(
-            checked > 0 || std::env::var_os("CI").is_none(),
-            "no test mesh found"
+        build_all(&grid);
+        let mut seamed = grid.clone();
+        let copies: Vec<u32> = (0..20)
+            .map(|z| {
+                seamed.positions.push(grid.positions[z * 20 + 10]);
+                (seamed.positions.len() - 1) as u32
+            })
+            .collect();
+        for tri in seamed.indices.chunks_exact_mut(3) {
+            if tri.iter().any(|&v| v % 20 > 10) {
+                for v in tri.iter_mut() {
+                    if *v % 20 == 10 {
+                        *v = copies[*v as usize / 20];
+                    }
+                }
+            }
+        }
+        assert!(super::Builder::new(&seamed, &options, None, None).has_seams);
+        build_all(&seamed);
+        let fin = IndexedMesh::new(
+            [
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, -1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [5.0, 0.0, 0.0],
+                [6.0, 0.0, 0.0],
+                [6.0, 1.0, 0.0],
+                [5.0, 1.0, 0.0],
+            ]
+            .map(glam::Vec3::from_array)
+            .to_vec(),
+            vec![0, 1, 2, 1, 0, 3, 0, 1, 4, 5, 6, 7, 5, 7, 8],
         );
+        build_all(&fin);
     }
 
     /// On a flat face every collapse costs exactly 0. Equal costs go to the target that has
