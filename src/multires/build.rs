@@ -32,7 +32,8 @@ pub struct BuildOptions {
     /// read slightly above this bound.
     pub max_error: f32,
     /// How strongly open borders keep their shape, relative to the faces. Default: `10.0`
-    /// (meshoptimizer's value).
+    /// (meshoptimizer's value). Negative or non-finite values count as `0.0` (with a
+    /// warning); for borders that hardly move, use a large finite value.
     pub border_weight: f64,
     /// Reject a collapse when a moved triangle's normal turns by more than this angle, as a
     /// cosine. Default: `0.25` (about 75°; meshoptimizer's value). `0.0` is the plain
@@ -45,7 +46,7 @@ pub struct BuildOptions {
     /// It also enters the error table: a collapse on a flat face records about
     /// `√regularization` times its edge length (3e-4 of it at the default) instead of 0.
     /// Default: `1e-7` (meshoptimizer's default). `0.0` turns it off; negative or non-finite
-    /// values count as `0.0`.
+    /// values count as `0.0` (with a warning).
     pub regularization: f64,
 }
 
@@ -113,6 +114,10 @@ struct Builder<'a> {
     target: Vec<u32>,
     /// Per position: its queued collapse was the cheapest valid one, not the cheapest.
     validated: Vec<bool>,
+    /// Per position: it lost `u` and `w` as neighbours in a collapse without being `w`'s
+    /// neighbour after it (a vertex with more than one fan), so nothing re-ranked it and its
+    /// queued collapse may be stale; its next re-rank is a full one.
+    stale: Vec<bool>,
     /// Per position: a lower bound on the [`level`](Builder::level)led costs of its other
     /// candidates (exact when ranked in full).
     runner_up: Vec<f64>,
@@ -215,6 +220,7 @@ impl<'a> Builder<'a> {
             heap: IndexedHeap::new(n),
             target: vec![u32::MAX; n],
             validated: vec![false; n],
+            stale: vec![false; n],
             runner_up: vec![f64::INFINITY; n],
             collapses: Vec::new(),
             rewrites: Vec::new(),
@@ -390,7 +396,7 @@ impl<'a> Builder<'a> {
                 let (v0, v1, v2) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
                 let (p0, p1) = (self.pos[v0 as usize], self.pos[v1 as usize]);
                 let weight = match edges[3 * t + k] {
-                    EdgeClass::Border => self.options.border_weight,
+                    EdgeClass::Border => non_negative(self.options.border_weight),
                     EdgeClass::Seam => 0.5,
                     EdgeClass::Inner => continue,
                 };
@@ -427,8 +433,8 @@ impl<'a> Builder<'a> {
         }
         // Regularization: a point quadric at each position (meshoptimizer's
         // `fillVertexQuadrics`).
-        let factor = self.options.regularization;
-        if factor > 0.0 && factor.is_finite() {
+        let factor = non_negative(self.options.regularization);
+        if factor > 0.0 {
             for (q, &p) in self.quadrics.iter_mut().zip(&self.points) {
                 let w = q.weight() * factor;
                 if w > 0.0 {
@@ -629,6 +635,7 @@ impl<'a> Builder<'a> {
         self.heap.remove(u);
         let chosen = self.choose(u, validate, ring);
         self.validated[u as usize] = validate;
+        self.stale[u as usize] = false;
         if let Some((cost, w, runner_up)) = chosen {
             self.target[u as usize] = w;
             self.runner_up[u as usize] = runner_up;
@@ -745,8 +752,9 @@ impl<'a> Builder<'a> {
     /// cost stays below every other candidate's (`runner_up`), since weights only break
     /// ties. Ranked in full instead: a choice of `w` that could tie, a choice of `u`, one
     /// made among the valid candidates only (validity depends on the neighbours' triangles,
-    /// and an unvalidated rank resets it), a vertex out of the queue, and one on or next to a
-    /// front (the front rule looks at the neighbours' triangles).
+    /// and an unvalidated rank resets it), a vertex out of the queue, one whose entry may be
+    /// stale (`stale`: pinched off an earlier collapse's ring, so not re-ranked then), and
+    /// one on or next to a front (the front rule looks at the neighbours' triangles).
     fn rerank(&mut self, x: u32, u: u32, w: u32) {
         let xi = x as usize;
         let moved = self.moved_ring.contains(&x);
@@ -754,7 +762,7 @@ impl<'a> Builder<'a> {
         let front = !self.anchor.is_empty()
             && (self.touches_anchor(x, None)
                 || (moved && (self.anchor[u as usize] || self.anchor[w as usize])));
-        if self.validated[xi] || front || !self.heap.contains(x) {
+        if self.validated[xi] || self.stale[xi] || front || !self.heap.contains(x) {
             self.rank(x, false, None);
             return;
         }
@@ -792,9 +800,6 @@ impl<'a> Builder<'a> {
     /// runner-up bound holds).
     #[cfg(test)]
     fn check_rerank(&mut self, x: u32) {
-        if self.validated[x as usize] {
-            return;
-        }
         let queued = self
             .heap
             .contains(x)
@@ -898,6 +903,12 @@ impl<'a> Builder<'a> {
             self.neighbors_into(w, &mut ring, &mut scratch);
             self.scratch = scratch;
             self.rank(w, false, Some(&ring));
+            for i in 0..self.moved_ring.len() {
+                let p = self.moved_ring[i];
+                if p != u && p != w && !ring.contains(&p) {
+                    self.stale[p as usize] = true;
+                }
+            }
             for &x in &ring {
                 self.rerank(x, u, w);
                 #[cfg(test)]
@@ -1008,6 +1019,17 @@ impl<'a> Builder<'a> {
 /// about `|p|²`: its rounding noise is about `1e-16 × |p|² / (1e-7 × edge²)`, 1e-5 relative
 /// for a vertex 100 edge lengths from the origin.
 #[inline]
+/// `value` when it is finite and not negative, else 0. Negative quadric weights would make a
+/// vertex lighter as it absorbs others (the re-ranking relies on the opposite) and reward
+/// distance from the planes.
+fn non_negative(value: f64) -> f64 {
+    if value.is_finite() && value > 0.0 {
+        value
+    } else {
+        0.0
+    }
+}
+
 fn settle(cost: f64) -> f64 {
     f64::from_bits(cost.to_bits() & !((1 << 36) - 1))
 }
@@ -1043,6 +1065,14 @@ pub(crate) fn build(
             ),
         ));
     }
+    for (name, value) in [
+        ("border_weight", options.border_weight),
+        ("regularization", options.regularization),
+    ] {
+        if non_negative(value) != value {
+            log::warn!("BuildOptions::{name} = {value} is negative or not finite: 0 is used");
+        }
+    }
     let mut builder = Builder::new(mesh, options, pinned, anchors);
     builder.run(progress);
     builder
@@ -1061,6 +1091,102 @@ mod tests {
     use super::{BuildOptions, build};
     use crate::mesh::{IndexedMesh, test_grid};
 
+    /// A triangle hanging between three closed bodies, one corner on each (found by review):
+    /// when one of those corners collapses onto another, the third loses both as neighbours
+    /// without becoming a neighbour of the survivor, so nothing re-ranks it then; its stale
+    /// entry must not survive the shortcuts later (`check_rerank` runs on every re-rank).
+    #[test]
+    fn a_vertex_pinched_off_by_a_collapse_is_re_ranked_in_full_later() {
+        let mut positions: Vec<glam::Vec3> = Vec::new();
+        let mut indices: Vec<u32> = Vec::new();
+        // A closed body: its faces turned outwards; returns its first vertex.
+        let mut body = |corners: &[[f32; 3]], faces: &[[u32; 3]]| -> u32 {
+            let base = positions.len() as u32;
+            positions.extend(corners.iter().map(|&c| glam::Vec3::from_array(c)));
+            let centre = corners
+                .iter()
+                .map(|&c| glam::Vec3::from_array(c))
+                .sum::<glam::Vec3>()
+                / corners.len() as f32;
+            for f in faces {
+                let p = |i: u32| positions[(base + i) as usize];
+                let outward = (p(f[1]) - p(f[0]))
+                    .cross(p(f[2]) - p(f[0]))
+                    .dot(p(f[0]) - centre);
+                let [a, b, c] = f.map(|i| base + i);
+                indices.extend(if outward > 0.0 { [a, b, c] } else { [a, c, b] });
+            }
+            base
+        };
+        let tetrahedron = |x: f32, dir: f32| {
+            let far = x + 3.0 * dir;
+            [
+                [x, 0.0, 0.0],
+                [far, 1.0, 1.0],
+                [far, -1.0, 1.0],
+                [far, 0.0, -1.5],
+            ]
+        };
+        let faces = [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 2, 3]];
+        let u = body(&tetrahedron(0.0, -1.0), &faces);
+        let w = body(&tetrahedron(0.01, 1.0), &faces);
+        let octahedron = [
+            [0.0, 10.0, 0.0],
+            [1.0, 9.0, 0.0],
+            [0.0, 9.0, 1.0],
+            [-1.0, 9.0, 0.0],
+            [0.0, 9.0, -1.0],
+            [0.0, 8.0, 0.0],
+        ];
+        let eight = [
+            [0, 1, 2],
+            [0, 2, 3],
+            [0, 3, 4],
+            [0, 4, 1],
+            [5, 1, 2],
+            [5, 2, 3],
+            [5, 3, 4],
+            [5, 4, 1],
+        ];
+        let y = body(&octahedron, &eight);
+        indices.extend([u, w, y]);
+        let mesh = IndexedMesh::new(positions, indices);
+        let n = mesh.triangle_count();
+        build(
+            &mesh,
+            &BuildOptions::default(),
+            None,
+            None,
+            n,
+            &mut |_, _| {},
+        )
+        .unwrap();
+    }
+
+    /// Negative border weights count as 0 (they would make a vertex lighter as it absorbs
+    /// others, which the re-ranking relies on never happening): the same sequence as 0.
+    #[test]
+    fn negative_border_weights_count_as_zero() {
+        let grid = test_grid(12, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
+        let n = grid.triangle_count();
+        let moves = |border_weight: f64| {
+            let options = BuildOptions {
+                border_weight,
+                ..BuildOptions::default()
+            };
+            build(&grid, &options, None, None, n, &mut |_, _| {})
+                .unwrap()
+                .moves
+        };
+        assert_eq!(moves(-10.0), moves(0.0));
+        assert_eq!(moves(f64::NAN), moves(0.0));
+        assert_ne!(
+            moves(10.0),
+            moves(0.0),
+            "the border weight matters on this grid"
+        );
+    }
+
     /// The per-position edge classification agrees with the definition, edge by edge, on
     /// meshes with holes (bunny), UV seams (spot) and a hand-made seam and border.
     #[test]
@@ -1070,7 +1196,7 @@ mod tests {
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/testdata/meshes");
         let mut meshes: Vec<IndexedMesh> = ["spot.obj", "stanford-bunny.obj"]
             .iter()
-            .filter_map(|name| IndexedMesh::load(dir.join(name)).ok().map(|(m, _)| m))
+            .map(|name| IndexedMesh::load(dir.join(name)).expect("a test mesh").0)
             .collect();
         // Two triangles on the edge 0-1, which the second one runs as 1-3: vertex 1 is shared,
         // vertices 0 and 3 only share a position, so the edge is a seam (both ways) with the
