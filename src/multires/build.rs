@@ -70,7 +70,10 @@ enum Kind {
     /// On an open border: may collapse only along a border edge, so the outline keeps its
     /// vertices in order.
     Border,
-    /// Non-manifold edge, several fans, or inconsistent winding: never removed.
+    /// Non-manifold edge, inconsistent winding, or neighbour counts that do not fit one fan:
+    /// never removed. The counts are all that is checked, as in meshoptimizer: two fans that
+    /// meet only at the vertex, every edge used once each way (one such vertex on the cow),
+    /// pass as manifold, and such a vertex may collapse, taking both fans along.
     Complex,
     /// Pinned by the caller (for example a vertex of another region): never removed and never
     /// a target.
