@@ -109,7 +109,7 @@ struct Builder<'a> {
     tris: Vec<[u32; 3]>,
     alive: Vec<bool>,
     /// Position id -> incident live triangles.
-    adj: Vec<Vec<u32>>,
+    adj: Adjacency,
     kind: Vec<Kind>,
     quadrics: Vec<Quadric>,
     /// The queue: each position's cheapest collapse cost; its target is in `target`.
@@ -138,6 +138,96 @@ struct Builder<'a> {
     candidates: Vec<(f64, u32)>,
     /// The positions of the triangles around the vertex last collapsed, before it was.
     moved_ring: Vec<u32>,
+    /// Scratch: the triangles around the vertex being collapsed.
+    adj_u: Vec<u32>,
+}
+
+/// Per position, its live triangles: every list in one arena, in position order (so the
+/// lists of nearby vertices sit near each other in memory, and reaching one is one load
+/// instead of two), each with room to grow; a list that outgrows its room moves to the end.
+/// Lists keep the order of `Vec` with `push` and `swap_remove`.
+struct Adjacency {
+    start: Vec<usize>,
+    len: Vec<u32>,
+    cap: Vec<u32>,
+    data: Vec<u32>,
+}
+
+impl Adjacency {
+    /// Empty lists with room for `counts[p]` triangles at position `p`, and some more.
+    fn with_counts(counts: &[u32]) -> Self {
+        let mut start = Vec::with_capacity(counts.len());
+        let mut cap = Vec::with_capacity(counts.len());
+        let mut next = 0usize;
+        for &c in counts {
+            // A vertex that survives a collapse takes its neighbour's triangles.
+            let room = if c == 0 {
+                0
+            } else {
+                c.saturating_add(c / 2 + 2)
+            };
+            start.push(next);
+            cap.push(room);
+            next += room as usize;
+        }
+        Self {
+            start,
+            len: vec![0; counts.len()],
+            cap,
+            data: vec![0; next],
+        }
+    }
+
+    /// Positions.
+    fn len(&self) -> usize {
+        self.start.len()
+    }
+
+    /// Appends `t` to `p`'s list.
+    #[inline]
+    fn push(&mut self, p: u32, t: u32) {
+        let p = p as usize;
+        if self.len[p] == self.cap[p] {
+            let (from, len) = (self.start[p], self.len[p] as usize);
+            let to = self.data.len();
+            let room = self.cap[p].saturating_mul(2).max(8);
+            self.data.resize(to + room as usize, 0);
+            self.data.copy_within(from..from + len, to);
+            self.start[p] = to;
+            self.cap[p] = room;
+        }
+        self.data[self.start[p] + self.len[p] as usize] = t;
+        self.len[p] += 1;
+    }
+
+    /// Removes the first `t` from `p`'s list, the last entry taking its place.
+    #[inline]
+    fn remove(&mut self, p: u32, t: u32) {
+        let p = p as usize;
+        let (from, len) = (self.start[p], self.len[p] as usize);
+        let list = &mut self.data[from..from + len];
+        if let Some(i) = list.iter().position(|&s| s == t) {
+            list[i] = list[len - 1];
+            self.len[p] -= 1;
+        }
+    }
+
+    /// Moves `p`'s list into `out` (cleared first), leaving it empty.
+    fn take(&mut self, p: u32, out: &mut Vec<u32>) {
+        out.clear();
+        out.extend_from_slice(&self[p as usize]);
+        self.len[p as usize] = 0;
+    }
+}
+
+impl std::ops::Index<usize> for Adjacency {
+    type Output = [u32];
+
+    #[inline]
+    fn index(&self, p: usize) -> &[u32] {
+        let from = self.start[p];
+        &self.data[from..from + self.len[p] as usize]
+    }
 }
 
 /// Buffers reused across collapse evaluations.
@@ -200,10 +290,14 @@ impl<'a> Builder<'a> {
             .chunks_exact(3)
             .map(|t| [t[0], t[1], t[2]])
             .collect();
-        let mut adj = vec![Vec::new(); n];
+        let mut counts = vec![0u32; n];
+        for &v in &mesh.indices {
+            counts[weld.remap[v as usize] as usize] += 1;
+        }
+        let mut adj = Adjacency::with_counts(&counts);
         for (t, tri) in tris.iter().enumerate() {
             for &v in tri {
-                adj[weld.remap[v as usize] as usize].push(t as u32);
+                adj.push(weld.remap[v as usize], t as u32);
             }
         }
         let diagonal = bounds.map_or(0.0, |(lo, hi)| f64::from((hi - lo).length()));
@@ -235,6 +329,7 @@ impl<'a> Builder<'a> {
             },
             candidates: Vec::new(),
             moved_ring: Vec::new(),
+            adj_u: Vec::new(),
         };
         builder.classify(pinned);
         // Fronts run along the anchors: the vertices given, or else every pinned one.
@@ -333,8 +428,8 @@ impl<'a> Builder<'a> {
         // (triangle, start position, start vertex, end vertex) of those arriving.
         let mut leaving: Vec<(u32, usize, u32, u32, u32)> = Vec::new();
         let mut arriving: Vec<(u32, u32, u32, u32)> = Vec::new();
-        for (p, around) in self.adj.iter().enumerate() {
-            let p = p as u32;
+        for p in 0..self.adj.len() as u32 {
+            let around = &self.adj[p as usize];
             leaving.clear();
             arriving.clear();
             for &t in around {
@@ -824,7 +919,8 @@ impl<'a> Builder<'a> {
         let mut removed = [u32::MAX; 2];
         let mut removed_count = 0u8;
         let map = std::mem::take(&mut self.scratch.map);
-        let adj_u = std::mem::take(&mut self.adj[u as usize]);
+        let mut adj_u = std::mem::take(&mut self.adj_u);
+        self.adj.take(u, &mut adj_u);
         self.moved_ring.clear();
         for &t in &adj_u {
             let tri = self.tris[t as usize];
@@ -839,10 +935,7 @@ impl<'a> Builder<'a> {
                 for &v in &tri {
                     let p = self.pos[v as usize];
                     if p != u {
-                        let list = &mut self.adj[p as usize];
-                        if let Some(i) = list.iter().position(|&s| s == t) {
-                            list.swap_remove(i);
-                        }
+                        self.adj.remove(p, t);
                     }
                 }
             } else {
@@ -857,13 +950,14 @@ impl<'a> Builder<'a> {
                         self.rewrites.push((t, k as u8, v, new));
                     }
                 }
-                self.adj[w as usize].push(t);
+                self.adj.push(w, t);
             }
         }
         let step = self.collapses.len() as u32;
         self.moves
             .extend(map.iter().map(|&(old, new)| (step, old, new)));
         self.scratch.map = map;
+        self.adj_u = adj_u;
         let q = self.quadrics[u as usize];
         self.quadrics[w as usize].add(&q);
         let error = (cost.sqrt() * self.inv_diagonal) as f32;
@@ -1093,6 +1187,46 @@ pub(crate) fn build(
 mod tests {
     use super::{BuildOptions, build};
     use crate::mesh::{IndexedMesh, test_grid};
+
+    /// The arena adjacency behaves as a `Vec` per position under pushes past its room
+    /// (lists move), swap-removes and takes, in a long pseudo-random sequence.
+    #[test]
+    fn adjacency_lists_match_vecs() {
+        use super::Adjacency;
+        let counts = [0u32, 1, 3, 6, 2];
+        let mut arena = Adjacency::with_counts(&counts);
+        let mut vecs: Vec<Vec<u32>> = vec![Vec::new(); counts.len()];
+        let mut state = 12345u64;
+        let mut taken = Vec::new();
+        for step in 0..5000u32 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let p = ((state >> 33) % counts.len() as u64) as u32;
+            match (state >> 20) % 7 {
+                0..=3 => {
+                    arena.push(p, step);
+                    vecs[p as usize].push(step);
+                }
+                4 | 5 => {
+                    let list = &vecs[p as usize];
+                    if let Some(&t) = list.get(((state >> 40) as usize) % list.len().max(1)) {
+                        arena.remove(p, t);
+                        let i = list.iter().position(|&s| s == t).unwrap();
+                        vecs[p as usize].swap_remove(i);
+                    }
+                }
+                _ => {
+                    arena.take(p, &mut taken);
+                    assert_eq!(taken, std::mem::take(&mut vecs[p as usize]));
+                }
+            }
+            for (q, list) in vecs.iter().enumerate() {
+                assert_eq!(&arena[q], list.as_slice(), "position {q} after step {step}");
+            }
+        }
+        assert_eq!(arena.len(), counts.len());
+    }
 
     /// A triangle hanging between three closed bodies, one corner on each (found by review):
     /// when one of those corners collapses onto another, the third loses both as neighbours
