@@ -115,12 +115,11 @@ struct Builder<'a> {
     /// The queue: each position's cheapest collapse cost; its target is in `target`.
     heap: IndexedHeap,
     target: Vec<u32>,
-    /// Per position: its queued collapse was the cheapest valid one, not the cheapest.
-    validated: Vec<bool>,
-    /// Per position: it lost `u` and `w` as neighbours in a collapse without being `w`'s
-    /// neighbour after it (a vertex with more than one fan), so nothing re-ranked it and its
-    /// queued collapse may be stale; its next re-rank is a full one.
-    stale: Vec<bool>,
+    /// Per position: its next re-rank must be a full one, because its queued collapse is the
+    /// cheapest valid one rather than the cheapest, or may be stale (it lost `u` and `w` as
+    /// neighbours in a collapse without being `w`'s neighbour after it, a vertex with more
+    /// than one fan, so nothing re-ranked it then).
+    full_rank_due: Vec<bool>,
     /// Per position: a lower bound on the [`level`](Builder::level)led costs of its other
     /// candidates (exact when ranked in full).
     runner_up: Vec<f64>,
@@ -134,6 +133,8 @@ struct Builder<'a> {
     /// when there is none, so no fronts to respect.
     anchor: Vec<bool>,
     inv_diagonal: f64,
+    /// Costs at or below this, `(1e-7 × the diagonal)²`, count as 0 (see `level`).
+    cost_floor: f64,
     scratch: Scratch,
     candidates: Vec<(f64, u32)>,
     /// The positions of the triangles around the vertex last collapsed, before it was.
@@ -301,6 +302,7 @@ impl<'a> Builder<'a> {
             }
         }
         let diagonal = bounds.map_or(0.0, |(lo, hi)| f64::from((hi - lo).length()));
+        let inv_diagonal = if diagonal > 0.0 { 1.0 / diagonal } else { 1.0 };
         let mut builder = Self {
             mesh,
             options,
@@ -316,13 +318,13 @@ impl<'a> Builder<'a> {
             quadrics: vec![Quadric::default(); n],
             heap: IndexedHeap::new(n),
             target: vec![u32::MAX; n],
-            validated: vec![false; n],
-            stale: vec![false; n],
+            full_rank_due: vec![false; n],
             runner_up: vec![f64::INFINITY; n],
             collapses: Vec::new(),
             rewrites: Vec::new(),
             moves: Vec::new(),
-            inv_diagonal: if diagonal > 0.0 { 1.0 / diagonal } else { 1.0 },
+            inv_diagonal,
+            cost_floor: 1e-14 / (inv_diagonal * inv_diagonal),
             scratch: Scratch {
                 mark: vec![0; n],
                 ..Scratch::default()
@@ -732,8 +734,7 @@ impl<'a> Builder<'a> {
     fn rank(&mut self, u: u32, validate: bool, ring: Option<&[u32]>) {
         self.heap.remove(u);
         let chosen = self.choose(u, validate, ring);
-        self.validated[u as usize] = validate;
-        self.stale[u as usize] = false;
+        self.full_rank_due[u as usize] = validate;
         if let Some((cost, w, runner_up)) = chosen {
             self.target[u as usize] = w;
             self.runner_up[u as usize] = runner_up;
@@ -833,8 +834,7 @@ impl<'a> Builder<'a> {
     /// A cost as [`order`](Self::order) compares it: below the floor, 0.
     #[inline]
     fn level(&self, cost: f64) -> f64 {
-        let tiny = 1e-14 / (self.inv_diagonal * self.inv_diagonal);
-        if cost <= tiny { 0.0 } else { cost }
+        if cost <= self.cost_floor { 0.0 } else { cost }
     }
 
     /// Brings the queued collapse of `x`, a neighbour of `w` after `u` collapsed onto `w`, up
@@ -851,8 +851,9 @@ impl<'a> Builder<'a> {
     /// ties. Ranked in full instead: a choice of `w` that could tie, a choice of `u`, one
     /// made among the valid candidates only (validity depends on the neighbours' triangles,
     /// and an unvalidated rank resets it), a vertex out of the queue, one whose entry may be
-    /// stale (`stale`: pinched off an earlier collapse's ring, so not re-ranked then), and
-    /// one on or next to a front (the front rule looks at the neighbours' triangles).
+    /// stale (pinched off an earlier collapse's ring, so not re-ranked then; both are
+    /// `full_rank_due`), and one on or next to a front (the front rule looks at the
+    /// neighbours' triangles).
     fn rerank(&mut self, x: u32, u: u32, w: u32) {
         let xi = x as usize;
         let moved = self.moved_ring.contains(&x);
@@ -860,7 +861,7 @@ impl<'a> Builder<'a> {
         let front = !self.anchor.is_empty()
             && (self.touches_anchor(x, None)
                 || (moved && (self.anchor[u as usize] || self.anchor[w as usize])));
-        if self.validated[xi] || self.stale[xi] || front || !self.heap.contains(x) {
+        if self.full_rank_due[xi] || front || !self.heap.contains(x) {
             self.rank(x, false, None);
             return;
         }
@@ -1003,7 +1004,7 @@ impl<'a> Builder<'a> {
             for i in 0..self.moved_ring.len() {
                 let p = self.moved_ring[i];
                 if p != u && p != w && !ring.contains(&p) {
-                    self.stale[p as usize] = true;
+                    self.full_rank_due[p as usize] = true;
                 }
             }
             for &x in &ring {
@@ -1109,13 +1110,6 @@ impl<'a> Builder<'a> {
     }
 }
 
-/// A collapse cost with its last 36 bits of mantissa cleared (kept to 2⁻¹⁶ ≈ 1.5e-5,
-/// relative), so that costs that are equal but for rounding compare equal and go to the
-/// tie-breaks instead of to whichever rounding came out lower. On a flat face every collapse
-/// costs only the regularization, `1e-7 × edge²`, evaluated from quadrics whose terms are
-/// about `|p|²`: its rounding noise is about `1e-16 × |p|² / (1e-7 × edge²)`, 1e-5 relative
-/// for a vertex 100 edge lengths from the origin.
-#[inline]
 /// `value` when it is finite and not negative, else 0. Negative quadric weights would make a
 /// vertex lighter as it absorbs others (the re-ranking relies on the opposite) and reward
 /// distance from the planes.
@@ -1127,6 +1121,13 @@ fn non_negative(value: f64) -> f64 {
     }
 }
 
+/// A collapse cost with its last 36 bits of mantissa cleared (kept to 2⁻¹⁶ ≈ 1.5e-5,
+/// relative), so that costs that are equal but for rounding compare equal and go to the
+/// tie-breaks instead of to whichever rounding came out lower. On a flat face every collapse
+/// costs only the regularization, `1e-7 × edge²`, evaluated from quadrics whose terms are
+/// about `|p|²`: its rounding noise is about `1e-16 × |p|² / (1e-7 × edge²)`, 1e-5 relative
+/// for a vertex 100 edge lengths from the origin.
+#[inline]
 fn settle(cost: f64) -> f64 {
     f64::from_bits(cost.to_bits() & !((1 << 36) - 1))
 }

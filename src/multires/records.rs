@@ -94,6 +94,11 @@ impl Corner for u32 {
     }
 }
 
+/// The side of an `[old, new]` pair a coarsening step writes.
+const NEW: usize = 1;
+/// The side of an `[old, new]` pair a refining step writes.
+const OLD: usize = 0;
+
 /// The records in one layout: vertices of type `V`, headers `H`, corner records `C`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) struct Records<V, H, C> {
@@ -151,7 +156,7 @@ impl<V: CacheIndex, H: Header, C: Corner> Records<V, H, C> {
         state: &mut Walk,
         triangles: usize,
     ) {
-        let (steps, corners, pairs) = (&self.steps[..], &self.corners[..], &self.pairs[..]);
+        let steps = &self.steps[..];
         let Walk {
             mut level,
             mut count,
@@ -160,11 +165,7 @@ impl<V: CacheIndex, H: Header, C: Corner> Records<V, H, C> {
         } = *state;
         while count > triangles && level < steps.len() {
             let (nc, np, removed) = steps[level].unpack();
-            let step_pairs = &pairs[pair..pair + np];
-            for c in &corners[corner..corner + nc] {
-                let c = c.get();
-                indices[(c >> 1) as usize] = I::from_u32(step_pairs[(c & 1) as usize][1].into());
-            }
+            self.rewrite(indices, corner..corner + nc, pair..pair + np, NEW);
             (corner, pair) = (corner + nc, pair + np);
             count -= removed;
             level += 1;
@@ -175,11 +176,7 @@ impl<V: CacheIndex, H: Header, C: Corner> Records<V, H, C> {
                 break;
             }
             (corner, pair) = (corner - nc, pair - np);
-            let step_pairs = &pairs[pair..pair + np];
-            for c in &corners[corner..corner + nc] {
-                let c = c.get();
-                indices[(c >> 1) as usize] = I::from_u32(step_pairs[(c & 1) as usize][0].into());
-            }
+            self.rewrite(indices, corner..corner + nc, pair..pair + np, OLD);
             count += removed;
             level -= 1;
         }
@@ -191,6 +188,23 @@ impl<V: CacheIndex, H: Header, C: Corner> Records<V, H, C> {
         };
     }
 
+    /// Points one step's corner records (`corners`, into its `pairs`) at side `side` of
+    /// their pair: [`NEW`] coarsening, [`OLD`] refining.
+    #[inline(always)]
+    fn rewrite<I: CacheIndex>(
+        &self,
+        indices: &mut [I],
+        corners: std::ops::Range<usize>,
+        pairs: std::ops::Range<usize>,
+        side: usize,
+    ) {
+        let pairs = &self.pairs[pairs];
+        for c in &self.corners[corners] {
+            let c = c.get();
+            indices[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][side].into());
+        }
+    }
+
     /// One step coarser; false at the base level.
     #[inline]
     pub(crate) fn coarsen<I: CacheIndex>(&self, indices: &mut [I], state: &mut Walk) -> bool {
@@ -198,11 +212,8 @@ impl<V: CacheIndex, H: Header, C: Corner> Records<V, H, C> {
             return false;
         };
         let (nc, np, removed) = header.unpack();
-        let pairs = &self.pairs[state.pair..state.pair + np];
-        for c in &self.corners[state.corner..state.corner + nc] {
-            let c = c.get();
-            indices[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][1].into());
-        }
+        let (corner, pair) = (state.corner, state.pair);
+        self.rewrite(indices, corner..corner + nc, pair..pair + np, NEW);
         state.corner += nc;
         state.pair += np;
         state.count -= removed;
@@ -219,11 +230,8 @@ impl<V: CacheIndex, H: Header, C: Corner> Records<V, H, C> {
         let (nc, np, removed) = self.steps[state.level - 1].unpack();
         state.corner -= nc;
         state.pair -= np;
-        let pairs = &self.pairs[state.pair..state.pair + np];
-        for c in &self.corners[state.corner..state.corner + nc] {
-            let c = c.get();
-            indices[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][0].into());
-        }
+        let (corner, pair) = (state.corner, state.pair);
+        self.rewrite(indices, corner..corner + nc, pair..pair + np, OLD);
         state.count += removed;
         state.level -= 1;
         true

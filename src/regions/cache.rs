@@ -139,8 +139,8 @@ fn oriented_triangle<J: CacheIndex>(
 }
 
 /// Marks fins in `skip`: among border triangles with the same positions (`group`: oriented
-/// key, winding, position in the active `Region::fin_prone`; sorted here), opposite pairs cancel, and of
-/// what is left one copy stays.
+/// key, winding, position in the active `Region::fin_prone`; sorted here), opposite pairs
+/// cancel, and of what is left one copy stays.
 fn cancel_fins(group: &mut [([u32; 3], bool, u32)], skip: &mut [bool]) {
     group.sort_unstable();
     for same in group.chunk_by(|a, b| a.0 == b.0) {

@@ -771,10 +771,8 @@ fn fin_prone(
     for (i, k) in keys.iter().enumerate() {
         by_key.entry(*k).or_default().push(i);
     }
-    for same in by_key.values().filter(|same| same.len() > 1) {
-        for &j in same {
-            prone[j] = true;
-        }
+    for k in &keys {
+        mark(&by_key, k, &mut prone);
     }
     let mut moved = Vec::new();
     for same_level in events.chunk_by(|a, b| a.0 == b.0) {
@@ -913,12 +911,13 @@ mod tests {
         let r0 = partition.region_of()[5];
         let region = &regions.regions()[r0 as usize];
         let at: Vec<u32> = (0..12).collect();
+        let full = region.mesh.full_indices();
         let on_edge: Vec<u32> = region
             .border
             .iter()
             .copied()
             .filter(|&t| {
-                let tri = &region.mesh.full_indices()[3 * t as usize..3 * t as usize + 3];
+                let tri = &full[3 * t as usize..3 * t as usize + 3];
                 let global: Vec<u32> = tri.iter().map(|&v| region.global[v as usize]).collect();
                 global.contains(&5) && global.contains(&6)
             })
@@ -937,6 +936,7 @@ mod tests {
         assert!(fin_prone(region, r0, partition.region_of(), &none, &at, &at).is_empty());
         assert_eq!(region.fin_prone, Vec::<u32>::new());
     }
+
     /// [`fin_prone`] the slow way, for comparison: every level of the region through a
     /// polygon cache, every border triangle's key at each.
     fn fin_prone_by_levels(
