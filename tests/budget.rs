@@ -792,9 +792,11 @@ fn projected_area_matches_brute_force_on_100k_random_boxes() {
     for s in &stats {
         assert!(s.count > 1000, "every situation is exercised: {stats:?}");
     }
-    // In practice the agreement is to the f32 rounding of the result, and the floor is unused.
+    // In practice the floor is unused, and sizable boxes agree to a few f32 roundings: boxes
+    // wholly in view are measured in f32 (about 2e-6 at worst), the others in f64 (to the
+    // rounding of the result).
     for s in &stats {
-        assert!(s.worst_relative <= 1e-6 && s.needed_floor == 0, "{stats:?}");
+        assert!(s.worst_relative <= 1e-5 && s.needed_floor == 0, "{stats:?}");
     }
 }
 
