@@ -259,6 +259,9 @@ pub struct MultiresInstance {
     caches: RegionCaches,
     targets: Vec<u32>,
     meshes: Vec<Handle<Mesh>>,
+    /// `meshes`' ids, for `Upload`: reading one from its handle follows the handle's pointer,
+    /// a cache miss per region mesh.
+    mesh_ids: Vec<AssetId<Mesh>>,
     /// Skinned models: the deformation state.
     skin: Option<skin::SkinState>,
     /// Every region entity, by region (a skinned model's rigid regions live under their

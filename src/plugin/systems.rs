@@ -197,6 +197,7 @@ fn spawn_regions(
             obbs: asset.obbs().clone(),
             regions,
             targets,
+            mesh_ids: handles.iter().map(Handle::id).collect(),
             meshes: handles,
             skin: state,
             staged,
@@ -638,7 +639,7 @@ fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) ->
         if !state.indices_changed && state.written.is_empty() {
             continue;
         }
-        if let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) {
+        if let Some(mut mesh) = instance.mesh_ids.get(r).and_then(|&id| meshes.get_mut(id)) {
             // `state.indices` is rewritten whole before it is read again.
             if state.indices_changed && swap_indices(&mut mesh, &mut state.indices) {
                 changed += 1;
@@ -689,7 +690,7 @@ fn upload(
                 continue;
             }
             // The mesh was removed by someone else: nothing to write.
-            let Some(mut mesh) = instance.meshes.get(r).and_then(|h| meshes.get_mut(h)) else {
+            let Some(mut mesh) = instance.mesh_ids.get(r).and_then(|&id| meshes.get_mut(id)) else {
                 continue;
             };
             if swap_staged(&mut mesh, buffer) {
