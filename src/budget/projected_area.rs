@@ -1,7 +1,9 @@
 //! The screen area of an oriented box; the method is on [`ProjectedAreaCamera`].
 
 use super::{BudgetError, Obb};
-use glam::{Affine3A, DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec4, Vec4Swizzles};
+use glam::{
+    Affine3A, DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec3A, Vec3Swizzles, Vec4, Vec4Swizzles,
+};
 
 /// The face planes, one bit each, in the order of the [`silhouette`] code: bit `2k` is set
 /// when the eye is below the box on axis `k` (it sees the `−k` face), bit `2k + 1` when it is
@@ -589,22 +591,38 @@ impl ProjectedAreaCamera {
 /// so every term of the shoelace sum has the same sign and none cancels.
 #[inline]
 fn outline_area(c: Vec4, a: &[Vec4; 3], outline: &[u8]) -> f32 {
-    let b = a.map(|ak| ak.xy() * c.w - c.xy() * ak.w);
-    let aw = a.map(|ak| ak.w);
-    let mut q = [Vec2::ZERO; 6];
-    for (slot, &corner) in q.iter_mut().zip(outline) {
-        *slot = corner_clip(Vec2::ZERO, &b, corner) / corner_clip(c.w, &aw, corner);
-    }
-    let q = &q[..outline.len()];
-    let Some(&(mut prev)) = q.last() else {
+    // Per axis `(d.xy · c.w − c.xy · d.w, d.w)` for `d = a[k]`; a corner's numerator and `w`
+    // are the signed sum of the three plus `(0, 0, c.w)`. All eight corners, without a branch
+    // on which sign each takes (the outline's corners differ from box to box).
+    let [x, y, z] = a.map(|d| Vec3A::from((d.xy() * c.w - c.xy() * d.w).extend(d.w)));
+    let base = Vec3A::new(0.0, 0.0, c.w);
+    let (x0, x1) = (base - x, base + x);
+    let (y0, y1) = (-y, y);
+    let corners = [
+        x0 + y0 - z,
+        x1 + y0 - z,
+        x0 + y1 - z,
+        x1 + y1 - z,
+        x0 + y0 + z,
+        x1 + y0 + z,
+        x0 + y1 + z,
+        x1 + y1 + z,
+    ];
+    let project = |k: u8| {
+        let v = corners[usize::from(k & 7)];
+        v.xy() / v.z
+    };
+    let Some(&last) = outline.last() else {
         return 0.0;
     };
-    let mut twice = 0.0;
-    for &p in q {
+    let mut prev = project(last);
+    let mut twice = 0.0f32;
+    for &k in outline {
+        let p = project(k);
         twice += prev.perp_dot(p);
         prev = p;
     }
-    (twice * 0.5).abs() / c.w / c.w
+    (twice * 0.5).abs() / (c.w * c.w)
 }
 
 /// Corner `i` of a box with centre `c` and half axes `a` (in whatever space, or any linear
