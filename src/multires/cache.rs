@@ -187,6 +187,21 @@ impl<I: CacheIndex> PolygonCache<I> {
         self.walk.count
     }
 
+    /// The targets that [`set_triangle_count`](Self::set_triangle_count) answers without
+    /// moving: every count in `from..below`.
+    #[inline]
+    pub(crate) fn steady_targets(&self, mesh: &ProgressiveMesh) -> (usize, usize) {
+        let Walk { level, count, .. } = self.walk;
+        // Coarser while the count is above the target, down to the base level; finer while
+        // the next level's count is within it, up to full detail.
+        let from = if level + 1 >= mesh.level_count() { 0 } else { count };
+        let below = match level.checked_sub(1) {
+            Some(step) => count + mesh.records.removed_by(step),
+            None => usize::MAX,
+        };
+        (from, below)
+    }
+
     /// Moves to `level` (clamped to the base level) and returns the triangle count reached.
     pub fn set_level(&mut self, mesh: &ProgressiveMesh, level: usize) -> usize {
         let level = level.min(mesh.level_count() - 1);

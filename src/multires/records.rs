@@ -280,6 +280,15 @@ impl Layout {
         }
     }
 
+    /// Triangles removed by step `step`.
+    #[inline]
+    pub(crate) fn removed_by(&self, step: usize) -> usize {
+        match self {
+            Self::Narrow(r) => r.steps[step].unpack().2,
+            Self::Wide(r) => r.steps[step].unpack().2,
+        }
+    }
+
     /// Triangles removed by each step, in order.
     pub(crate) fn removed(&self) -> Vec<usize> {
         match self {

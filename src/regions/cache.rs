@@ -14,8 +14,35 @@ use crate::multires::{CacheIndex, PolygonCache, ProgressiveMesh};
 #[derive(Clone, Debug)]
 pub struct RegionCaches {
     caches: Vec<Cache>,
+    /// Per region, its count and the targets that leave it where it is: the per-frame pass
+    /// over every region reads these few bytes instead of the region's cache.
+    steady: Vec<Steady>,
     dirty: Vec<bool>,
     scratch: Scratch,
+}
+
+/// A region's triangle count, and the targets `from..below` that
+/// [`RegionCaches::set_triangle_count`] answers without moving it.
+#[derive(Clone, Copy, Debug)]
+struct Steady {
+    count: usize,
+    from: usize,
+    below: usize,
+}
+
+impl Steady {
+    #[inline]
+    fn of(cache: &Cache, mesh: &ProgressiveMesh) -> Self {
+        let (from, below) = match cache {
+            Cache::Narrow(c) => c.steady_targets(mesh),
+            Cache::Wide(c) => c.steady_targets(mesh),
+        };
+        Self {
+            count: cache.triangle_count(),
+            from,
+            below,
+        }
+    }
 }
 
 /// Equal when every region is at the same level with the same buffer and dirty flag (scratch
@@ -243,8 +270,15 @@ impl RegionCaches {
     /// Every region at full detail, every region dirty.
     #[must_use]
     pub fn new(mesh: &RegionMesh) -> Self {
+        let caches: Vec<_> = mesh.regions().iter().map(|r| Cache::new(&r.mesh)).collect();
+        let steady = caches
+            .iter()
+            .zip(mesh.regions())
+            .map(|(cache, r)| Steady::of(cache, &r.mesh))
+            .collect();
         Self {
-            caches: mesh.regions().iter().map(|r| Cache::new(&r.mesh)).collect(),
+            caches,
+            steady,
             dirty: vec![true; mesh.regions().len()],
             scratch: Scratch::default(),
         }
@@ -276,13 +310,13 @@ impl RegionCaches {
     #[inline]
     #[must_use]
     pub fn triangle_count(&self, region: usize) -> usize {
-        self.caches[region].triangle_count()
+        self.steady[region].count
     }
 
     /// Sum of [`triangle_count`](Self::triangle_count) over all regions.
     #[must_use]
     pub fn total_triangles(&self) -> usize {
-        self.caches.iter().map(Cache::triangle_count).sum()
+        self.steady.iter().map(|s| s.count).sum()
     }
 
     /// True when the region's index buffer must be written again.
@@ -309,6 +343,10 @@ impl RegionCaches {
         region: usize,
         triangles: usize,
     ) -> usize {
+        let steady = self.steady[region];
+        if (steady.from..steady.below).contains(&triangles) {
+            return steady.count;
+        }
         let data = &mesh.regions()[region];
         let cache = &mut self.caches[region];
         let before = cache.level();
@@ -317,6 +355,7 @@ impl RegionCaches {
         if after == before {
             return reached;
         }
+        self.steady[region] = Steady::of(cache, &data.mesh);
         self.dirty[region] = true;
         let events = &data.front_events;
         let first = |level: usize| events.partition_point(|e| (e.step as usize) < level);
@@ -432,6 +471,40 @@ mod tests {
     use crate::mesh::test_grid;
     use crate::multires::{BuildOptions, PolygonCache};
     use crate::regions::{GridPlane, Partition, RegionMesh};
+
+    /// The shortcut for targets that leave a region where it is agrees with a walk of the
+    /// region's own cache, at every level boundary (targets one off the counts, 0, past the
+    /// full count).
+    #[test]
+    fn steady_targets_are_exactly_those_that_do_not_move() {
+        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
+        let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
+        let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+        let mut caches = RegionCaches::new(&regions);
+        let mut plain: Vec<PolygonCache<u32>> = regions
+            .regions()
+            .iter()
+            .map(|r| PolygonCache::new(&r.mesh))
+            .collect();
+        let mut seed = 0x9e37_79b9_u64;
+        for _ in 0..4000 {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            let r = (seed >> 33) as usize % regions.regions().len();
+            let count = caches.triangle_count(r);
+            let max = regions.regions()[r].max_triangles();
+            let target = match (seed >> 20) % 8 {
+                0 => 0,
+                1 => max + 1,
+                2 => (seed >> 40) as usize % (max + 1),
+                k => (count + k as usize).saturating_sub(5),
+            };
+            let reached = caches.set_triangle_count(&regions, r, target);
+            let mesh = &regions.regions()[r].mesh;
+            assert_eq!(reached, plain[r].set_triangle_count(mesh, target), "{target}");
+            assert_eq!(caches.level(r), plain[r].level());
+            assert_eq!(caches.triangle_count(r), reached);
+        }
+    }
 
     /// 32-bit and 16-bit caches move and write alike (regions of more than 65,535 vertices
     /// get 32-bit ones; here they are forced on a small mesh).
