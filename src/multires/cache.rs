@@ -194,7 +194,11 @@ impl<I: CacheIndex> PolygonCache<I> {
         let Walk { level, count, .. } = self.walk;
         // Coarser while the count is above the target, down to the base level; finer while
         // the next level's count is within it, up to full detail.
-        let from = if level + 1 >= mesh.level_count() { 0 } else { count };
+        let from = if level + 1 >= mesh.level_count() {
+            0
+        } else {
+            count
+        };
         let below = match level.checked_sub(1) {
             Some(step) => count + mesh.records.removed_by(step),
             None => usize::MAX,

@@ -500,7 +500,11 @@ mod tests {
             };
             let reached = caches.set_triangle_count(&regions, r, target);
             let mesh = &regions.regions()[r].mesh;
-            assert_eq!(reached, plain[r].set_triangle_count(mesh, target), "{target}");
+            assert_eq!(
+                reached,
+                plain[r].set_triangle_count(mesh, target),
+                "{target}"
+            );
             assert_eq!(caches.level(r), plain[r].level());
             assert_eq!(caches.triangle_count(r), reached);
         }
