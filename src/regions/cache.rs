@@ -211,6 +211,13 @@ impl Scratch {
         );
         let prone = active(&data.fin_prone, indices.len() / 3);
         out.clear();
+        if out.capacity() < indices.len() {
+            // A fresh buffer (growing this one would copy its stale contents), with room for
+            // twice what is needed now but never more than the region's full detail: buffers
+            // that follow a region as it grows reallocate rarely, and never outgrow it.
+            let full = 3 * data.mesh.max_triangles();
+            *out = Vec::with_capacity(full.min(2 * indices.len().max(out.capacity())));
+        }
         if prone.len() < 2 {
             // The common case: every active triangle, in one copy.
             extend(out, indices);
@@ -508,6 +515,25 @@ mod tests {
             assert_eq!(caches.level(r), plain[r].level());
             assert_eq!(caches.triangle_count(r), reached);
         }
+    }
+
+    /// A buffer that follows a region up to its full detail grows to at most the full size.
+    #[test]
+    fn written_buffers_never_outgrow_the_full_detail() {
+        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
+        let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2).unwrap();
+        let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+        let mut caches = RegionCaches::new(&regions);
+        let max = regions.regions()[0].max_triangles();
+        let full = 3 * max;
+        let mut out: Vec<u16> = Vec::new();
+        // Grown by `Vec`'s doubling this sequence would end at 4/3 of the full size.
+        for target in [max / 3, max / 2 + 1, max] {
+            caches.set_triangle_count(&regions, 0, target);
+            caches.write_indices_u16(&regions, 0, &mut out);
+            assert!(out.capacity() <= full, "{} > {full}", out.capacity());
+        }
+        assert_eq!(out.len(), full);
     }
 
     /// 32-bit and 16-bit caches move and write alike (regions of more than 65,535 vertices
