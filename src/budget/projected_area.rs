@@ -168,8 +168,9 @@ pub fn silhouette(code: u8) -> &'static [u8] {
 ///   table apply.
 /// - **Precision.** A box wholly inside the view is measured in `f32`, each outline corner
 ///   relative to the projection of the box's centre (so a small box far off the view axis
-///   keeps its digits): within about 2e-6 relative of an `f64` brute force on 100,000 random
-///   boxes. Boxes that the viewport or the near plane clip are measured in `f64`.
+///   keeps its digits), unless its outline is thin (seen nearly edge-on, where the `f32`
+///   products would cancel) or out of `f32`'s range. Those, and boxes that the viewport or
+///   the near plane clip, are measured in `f64`.
 ///
 /// Everything is in clip space, so any projection matrix with wgpu's depth range `0..=1` works:
 /// `perspective_rh`, Bevy's `perspective_infinite_reverse_rh` (also with an oblique near plane,
@@ -490,10 +491,12 @@ impl ProjectedAreaCamera {
         if (sides_c - sides_r).cmpge(Vec4::ZERO).all() {
             // Wholly inside the viewport (give or take the f32 rounding of the test): no
             // clipping, and the outline is measured around the centre's projection.
-            return outline_area(c, &a, outline) * self.ndc_to_pixels;
+            if let Some(area) = outline_area(c, &a, outline) {
+                return area * self.ndc_to_pixels;
+            }
         }
 
-        // The box in clip space again, in f64, now that it is known to matter. In f32 the
+        // The box in clip space again, in f64, for clipped outlines and thin ones. In f32 the
         // corners (centre ± half axes) round to the centre's magnitude, most of the outline's
         // size for a small box far away, and the clipped sliver of a box at the viewport's edge
         // moves with every rounding of its position.
@@ -589,8 +592,10 @@ impl ProjectedAreaCamera {
 /// the view axis, which is what keeps `f32` enough here (the straightforward `v.xy / v.w` of
 /// each corner rounds them to the centre's magnitude). The centre projects inside the outline,
 /// so every term of the shoelace sum has the same sign and none cancels.
+///
+/// `None` where `f32` is not enough: a thin outline, or values out of its range.
 #[inline]
-fn outline_area(c: Vec4, a: &[Vec4; 3], outline: &[u8]) -> f32 {
+fn outline_area(c: Vec4, a: &[Vec4; 3], outline: &[u8]) -> Option<f32> {
     // Per axis `(d.xy · c.w − c.xy · d.w, d.w)` for `d = a[k]`; a corner's numerator and `w`
     // are the signed sum of the three plus `(0, 0, c.w)`. All eight corners, without a branch
     // on which sign each takes (the outline's corners differ from box to box).
@@ -613,16 +618,33 @@ fn outline_area(c: Vec4, a: &[Vec4; 3], outline: &[u8]) -> f32 {
         v.xy() / v.z
     };
     let Some(&last) = outline.last() else {
-        return 0.0;
+        return Some(0.0);
     };
     let mut prev = project(last);
-    let mut twice = 0.0f32;
+    let (mut twice, mut size) = (0.0f32, 0.0f32);
     for &k in outline {
         let p = project(k);
-        twice += prev.perp_dot(p);
+        let (u, v) = (prev.x * p.y, prev.y * p.x);
+        twice += u - v;
+        size += u.abs() + v.abs();
         prev = p;
     }
-    (twice * 0.5).abs() / (c.w * c.w)
+    let ww = c.w * c.w;
+    let area = (twice * 0.5).abs() / ww;
+    // A thin outline (a box seen nearly edge-on, a needle pointing at the eye) is a small
+    // difference of larger values, where f32 keeps few digits. Two places cancel: the
+    // shoelace products (`size` is their magnitude), and the per-axis terms, each good to
+    // about an f32 rounding of its two products (`rounding`), which moves the area by about
+    // that times the outline's size (`spread`). Past these bounds (about 1e-5 relative at
+    // worst), and when f32 over- or underflows (boxes some 1e19 units away): `None`.
+    let rounding: f32 = a
+        .iter()
+        .map(|d| (d.xy() * c.w).abs().element_sum() + (c.xy() * d.w).abs().element_sum())
+        .sum();
+    let spread =
+        x.xy().abs().element_sum() + y.xy().abs().element_sum() + z.xy().abs().element_sum();
+    let fine = size <= 16.0 * twice.abs() && rounding * spread <= 8.0 * twice.abs() * ww;
+    (fine && area.is_finite() && ww.is_finite()).then_some(area)
 }
 
 /// Corner `i` of a box with centre `c` and half axes `a` (in whatever space, or any linear
