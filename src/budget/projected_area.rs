@@ -591,9 +591,10 @@ impl ProjectedAreaCamera {
 /// computed once. The offsets are as small as the box and no digits go to its distance from
 /// the view axis, which is what keeps `f32` enough here (the straightforward `v.xy / v.w` of
 /// each corner rounds them to the centre's magnitude). The centre projects inside the outline,
-/// so every term of the shoelace sum has the same sign and none cancels.
+/// so every term of the shoelace sum has the same sign and the sum does not cancel.
 ///
-/// `None` where `f32` is not enough: a thin outline, or values out of its range.
+/// `None` where `f32` is not enough: a thin outline (where the terms themselves cancel), or
+/// values out of its range.
 #[inline]
 fn outline_area(c: Vec4, a: &[Vec4; 3], outline: &[u8]) -> Option<f32> {
     // Per axis `(d.xy · c.w − c.xy · d.w, d.w)` for `d = a[k]`; a corner's numerator and `w`
