@@ -600,7 +600,12 @@ fn outline_area(c: Vec4, a: &[Vec4; 3], outline: &[u8]) -> Option<f32> {
     // Per axis `(d.xy · c.w − c.xy · d.w, d.w)` for `d = a[k]`; a corner's numerator and `w`
     // are the signed sum of the three plus `(0, 0, c.w)`. All eight corners, without a branch
     // on which sign each takes (the outline's corners differ from box to box).
-    let [x, y, z] = a.map(|d| Vec3A::from((d.xy() * c.w - c.xy() * d.w).extend(d.w)));
+    // The two products of each term, kept apart for the rounding check below.
+    let products = a.map(|d| (d.xy() * c.w, c.xy() * d.w));
+    let [x, y, z] = std::array::from_fn(|k| {
+        let (p, q) = products[k];
+        Vec3A::from((p - q).extend(a[k].w))
+    });
     let base = Vec3A::new(0.0, 0.0, c.w);
     let (x0, x1) = (base - x, base + x);
     let (y0, y1) = (-y, y);
@@ -638,9 +643,9 @@ fn outline_area(c: Vec4, a: &[Vec4; 3], outline: &[u8]) -> Option<f32> {
     // about an f32 rounding of its two products (`rounding`), which moves the area by about
     // that times the outline's size (`spread`). Past these bounds (about 1e-5 relative at
     // worst), and when f32 over- or underflows (boxes some 1e19 units away): `None`.
-    let rounding: f32 = a
+    let rounding: f32 = products
         .iter()
-        .map(|d| (d.xy() * c.w).abs().element_sum() + (c.xy() * d.w).abs().element_sum())
+        .map(|(p, q)| p.abs().element_sum() + q.abs().element_sum())
         .sum();
     let spread =
         x.xy().abs().element_sum() + y.xy().abs().element_sum() + z.xy().abs().element_sum();

@@ -291,10 +291,7 @@ impl Layout {
 
     /// Triangles removed by each step, in order.
     pub(crate) fn removed(&self) -> Vec<usize> {
-        match self {
-            Self::Narrow(r) => r.steps.iter().map(|h| h.unpack().2).collect(),
-            Self::Wide(r) => r.steps.iter().map(|h| h.unpack().2).collect(),
-        }
+        (0..self.step_count()).map(|s| self.removed_by(s)).collect()
     }
 
     /// The full-detail index buffer as `I` (which the caller checked can hold every vertex).

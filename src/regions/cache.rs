@@ -479,14 +479,19 @@ mod tests {
     use crate::multires::{BuildOptions, PolygonCache};
     use crate::regions::{GridPlane, Partition, RegionMesh};
 
+    /// A bumpy 17×17-vertex grid cut into `n`×`n` regions.
+    fn bumpy_grid_regions(n: usize) -> RegionMesh {
+        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
+        let partition = Partition::grid(&mesh, GridPlane::XZ, n, n).unwrap();
+        RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap()
+    }
+
     /// The shortcut for targets that leave a region where it is agrees with a walk of the
     /// region's own cache, at every level boundary (targets one off the counts, 0, past the
     /// full count).
     #[test]
     fn steady_targets_are_exactly_those_that_do_not_move() {
-        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
-        let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
-        let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+        let regions = bumpy_grid_regions(3);
         let mut caches = RegionCaches::new(&regions);
         let mut plain: Vec<PolygonCache<u32>> = regions
             .regions()
@@ -520,9 +525,7 @@ mod tests {
     /// A buffer that follows a region up to its full detail grows to at most the full size.
     #[test]
     fn written_buffers_never_outgrow_the_full_detail() {
-        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
-        let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2).unwrap();
-        let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+        let regions = bumpy_grid_regions(2);
         let mut caches = RegionCaches::new(&regions);
         let max = regions.regions()[0].max_triangles();
         let full = 3 * max;
@@ -540,9 +543,7 @@ mod tests {
     /// get 32-bit ones; here they are forced on a small mesh).
     #[test]
     fn wide_and_narrow_caches_agree() {
-        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
-        let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
-        let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap();
+        let regions = bumpy_grid_regions(3);
         let mut narrow = RegionCaches::new(&regions);
         assert!(narrow.caches.iter().all(|c| matches!(c, Cache::Narrow(_))));
         let mut wide = narrow.clone();
