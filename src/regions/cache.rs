@@ -115,15 +115,11 @@ struct Scratch {
     group: Vec<([u32; 3], bool, u32)>,
 }
 
-/// Appends `src` to `out`, converted (the caller checked that narrowing fits). When the types
-/// agree this is one `memcpy`: the element-wise conversion loop does not become one, and
-/// these copies are most of what an update costs.
+/// Appends `src` to `out`, converted (a plain copy when the types agree; the caller checked
+/// that narrowing fits).
 #[inline]
 fn extend<I: CacheIndex, J: CacheIndex>(out: &mut Vec<I>, src: &[J]) {
-    match (out as &mut dyn std::any::Any).downcast_mut::<Vec<J>>() {
-        Some(same) => same.extend_from_slice(src),
-        None => out.extend(src.iter().map(|&v| I::from_u32(v.into()))),
-    }
+    out.extend(src.iter().map(|&v| I::from_u32(v.into())));
 }
 
 /// The triangle's positions sorted, and whether the sort kept its winding; `None` when
