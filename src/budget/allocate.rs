@@ -93,6 +93,61 @@ impl RegionInput {
     }
 }
 
+/// Runs the allocator's passes over chunks of regions: [`Sequential`] runs them one after
+/// another on the calling thread; an executor that hands them to a thread pool splits the
+/// work ([`Allocator::allocate_with`]; the Bevy plugin uses its compute task pool).
+///
+/// The chunks are the same whoever runs them, and their sums are combined in chunk order,
+/// so the allocation does not depend on the executor or on the number of threads.
+///
+/// ```
+/// use bevy_aslod::budget::{AllocationParams, Allocator, Executor, RegionInput, Sequential};
+///
+/// /// Runs the chunks on scoped threads, two at a time.
+/// struct Threads;
+///
+/// impl Executor for Threads {
+///     fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
+///         std::thread::scope(|scope| {
+///             for pair in items.chunks_mut(2) {
+///                 scope.spawn(move || pair.iter_mut().for_each(f));
+///             }
+///         });
+///     }
+/// }
+///
+/// let regions: Vec<RegionInput> = (0..10_000)
+///     .map(|i| RegionInput::from_area((i % 97) as f32, 1.0, 2, 500, 0))
+///     .collect();
+/// let params = AllocationParams::with_budget(1_000_000);
+/// let (mut on_threads, mut in_order) = (Vec::new(), Vec::new());
+/// Allocator::new().allocate_with(&params, &regions, &mut on_threads, &Threads)?;
+/// Allocator::new().allocate_with(&params, &regions, &mut in_order, &Sequential)?;
+/// assert_eq!(on_threads, in_order);
+/// # Ok::<(), bevy_aslod::budget::BudgetError>(())
+/// ```
+pub trait Executor: Sync {
+    /// Calls `f` once on every item of `items`, in any order and on any threads, and returns
+    /// when every call has returned.
+    fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync));
+}
+
+/// The [`Executor`] that runs every chunk in order on the calling thread
+/// ([`Allocator::allocate`] uses it).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Sequential;
+
+impl Executor for Sequential {
+    #[inline]
+    fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
+        items.iter_mut().for_each(f);
+    }
+}
+
+/// Regions per chunk of a pass that an [`Executor`] runs. Fixed, not derived from a thread
+/// count, so that the sums (per chunk, then in chunk order) are the same on any executor.
+const CHUNK: usize = 2048;
+
 /// What [`allocate`] did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AllocationReport {
@@ -222,24 +277,41 @@ impl Allocator {
         regions: &[RegionInput],
         out: &mut Vec<u32>,
     ) -> Result<AllocationReport, BudgetError> {
+        self.allocate_with(params, regions, out, &Sequential)
+    }
+
+    /// [`allocate`](Self::allocate) with its passes over the regions (validation, shares,
+    /// the water level's first round, rounding) run by `executor`, in chunks: the same
+    /// result as [`Sequential`]'s, split across threads. The few small job lists are the only
+    /// memory it takes per call.
+    ///
+    /// # Errors
+    ///
+    /// As [`allocate`].
+    pub fn allocate_with(
+        &mut self,
+        params: &AllocationParams,
+        regions: &[RegionInput],
+        out: &mut Vec<u32>,
+        executor: &impl Executor,
+    ) -> Result<AllocationReport, BudgetError> {
         out.clear();
-        validate(params, regions)?;
+        let totals = scan(params, regions, executor)?;
         let available = u64::from(params.available());
         let mut report = AllocationReport {
             available,
             ..Default::default()
         };
-        let min_total: u64 = regions.iter().map(|r| u64::from(r.min)).sum();
-        if available < min_total {
+        if available < totals.min_total {
             out.extend(regions.iter().map(|r| r.min));
             report.infeasible = true;
-            report.total = min_total;
+            report.total = totals.min_total;
             report.at_min = regions.len();
             return Ok(report);
         }
 
-        self.compute_shares(params.alpha, regions);
-        match self.water_level(regions, available as f64) {
+        self.compute_shares(params.alpha, totals.max_weight, regions, executor);
+        match self.water_level(regions, available as f64, executor) {
             None => {
                 // Everything with a weight fits at its maximum.
                 report.saturated = true;
@@ -253,7 +325,7 @@ impl Allocator {
                     }
                 }
             }
-            Some(lambda) => self.round(regions, lambda, available, out, &mut report),
+            Some(lambda) => self.round(regions, lambda, available, out, &mut report, executor),
         }
         self.hysteresis(params.hysteresis, regions, available, out, &mut report);
         report.total = out.iter().map(|&p| u64::from(p)).sum();
@@ -262,29 +334,39 @@ impl Allocator {
 
     /// `sᵢ = (wᵢ / w_max)^(1/α)`, `0` for weightless regions and for regions whose bounds
     /// leave nothing to decide.
-    fn compute_shares(&mut self, alpha: f32, regions: &[RegionInput]) {
-        let max_weight = regions.iter().fold(0.0f32, |m, r| m.max(r.weight));
+    fn compute_shares(
+        &mut self,
+        alpha: f32,
+        max_weight: f32,
+        regions: &[RegionInput],
+        executor: &impl Executor,
+    ) {
         self.share.clear();
+        self.share.resize(regions.len(), 0.0);
         if max_weight <= 0.0 {
-            self.share.resize(regions.len(), 0.0);
             return;
         }
         let scale = 1.0 / f64::from(max_weight);
         let alpha = f64::from(alpha);
-        let share = &mut self.share;
-        if alpha == 1.0 {
-            fill_shares(share, regions, scale, |x| x);
-        } else if alpha == 2.0 {
-            fill_shares(share, regions, scale, f64::sqrt);
-        } else if alpha == 3.0 {
-            fill_shares(share, regions, scale, cbrt_normal);
-        } else if alpha.is_infinite() {
-            fill_shares(share, regions, scale, |_| 1.0);
-        } else {
-            // log2 then exp2 (glibc's are fast and exact to an ulp); underflow gives 0.
-            let exponent = 1.0 / alpha;
-            fill_shares(share, regions, scale, |x| (x.log2() * exponent).exp2());
-        }
+        let mut jobs: Vec<_> = regions
+            .chunks(CHUNK)
+            .zip(self.share.chunks_mut(CHUNK))
+            .collect();
+        executor.for_each(&mut jobs, &|(regions, shares)| {
+            if alpha == 1.0 {
+                fill_shares(shares, regions, scale, |x| x);
+            } else if alpha == 2.0 {
+                fill_shares(shares, regions, scale, f64::sqrt);
+            } else if alpha == 3.0 {
+                fill_shares(shares, regions, scale, cbrt_normal);
+            } else if alpha.is_infinite() {
+                fill_shares(shares, regions, scale, |_| 1.0);
+            } else {
+                // log2 then exp2 (glibc's are fast and exact to an ulp); underflow gives 0.
+                let exponent = 1.0 / alpha;
+                fill_shares(shares, regions, scale, |x| (x.log2() * exponent).exp2());
+            }
+        });
     }
 
     /// The scale `λ` with `Σ clamp(λ·sᵢ, minᵢ, maxᵢ) = target`, or `None` when even every
@@ -302,7 +384,12 @@ impl Allocator {
     /// The loops write their output slot unconditionally and advance by a 0/1 flag, and add
     /// flag-weighted terms instead of branching: which way a region goes is a coin toss the
     /// branch predictor cannot learn.
-    fn water_level(&mut self, regions: &[RegionInput], target: f64) -> Option<f64> {
+    fn water_level(
+        &mut self,
+        regions: &[RegionInput],
+        target: f64,
+        executor: &impl Executor,
+    ) -> Option<f64> {
         let n = regions.len();
         for buffer in [&mut self.pending, &mut self.pending_next] {
             if buffer.len() < n {
@@ -321,29 +408,30 @@ impl Allocator {
             }
         }
         let mut pivots = Pivots::quartiles(&mut self.breakpoints, 0.0, f64::INFINITY);
-        let [p0, p1, p2] = pivots.padded();
+        let padded = pivots.padded();
+        let mut jobs: Vec<_> = regions
+            .chunks(CHUNK)
+            .zip(self.share.chunks(CHUNK))
+            .zip(self.pending[..n].chunks_mut(CHUNK))
+            .map(|((regions, shares), pending)| (regions, shares, pending, Gathered::default()))
+            .collect();
+        executor.for_each(&mut jobs, &|(regions, shares, pending, gathered)| {
+            *gathered = gather(regions, shares, pending, padded);
+        });
+        // The open regions of every chunk, moved together at the front of `pending`.
         let (mut fixed, mut max_total) = (0.0, 0.0);
         let mut sums = [0.0f64; 3];
         let mut len = 0;
-        for (r, &s) in regions.iter().zip(&self.share) {
-            let (min, max) = (f64::from(r.min), f64::from(r.max));
-            let active = s > 0.0;
-            let inverse = 1.0 / s; // ∞ when inactive, and then unused
-            self.pending[len] = Pending {
-                lower: min * inverse,
-                upper: max * inverse,
-                share: s,
-                min,
-                max,
-            };
-            len += usize::from(active);
-            fixed += min * flag(!active);
-            max_total += max * flag(active);
-            // An inactive region has s = 0, so these add min · 0.
-            let weight = flag(active);
-            sums[0] += weight * (p0 * s).clamp(min, max);
-            sums[1] += weight * (p1 * s).clamp(min, max);
-            sums[2] += weight * (p2 * s).clamp(min, max);
+        let counts: Vec<Gathered> = jobs.into_iter().map(|job| job.3).collect();
+        for (c, gathered) in counts.iter().enumerate() {
+            let start = c * CHUNK;
+            self.pending.copy_within(start..start + gathered.open, len);
+            len += gathered.open;
+            fixed += gathered.fixed;
+            max_total += gathered.max_total;
+            for (sum, part) in sums.iter_mut().zip(gathered.sums) {
+                *sum += part;
+            }
         }
         if fixed + max_total <= target {
             return None;
@@ -449,31 +537,45 @@ impl Allocator {
         available: u64,
         out: &mut Vec<u32>,
         report: &mut AllocationReport,
+        executor: &impl Executor,
     ) {
-        let mut total = 0u64;
-        // Branch-free again. A weightless region has λ·0 = 0 ≤ min, so it lands on its min
-        // with no remainder, and it is never ranked for an extra triangle.
-        if self.ranked.len() < regions.len() {
-            self.ranked.resize(regions.len(), 0);
+        let n = regions.len();
+        if self.ranked.len() < n {
+            self.ranked.resize(n, 0);
         }
-        let mut ranked = 0;
-        let (mut at_min, mut at_max) = (0, 0);
-        out.reserve(regions.len());
-        for (i, (r, &s)) in regions.iter().zip(&self.share).enumerate() {
-            let (min, max) = (f64::from(r.min), f64::from(r.max));
-            let want = lambda * s;
-            let t = want.clamp(min, max);
-            let p = t as u32; // t ≥ 0, so truncation is the floor; in [min, max]
-            out.push(p);
-            total += u64::from(p);
-            at_min += usize::from(want <= min);
-            at_max += usize::from((want >= max) & (s > 0.0));
-            self.ranked[ranked] = rank_key(t - f64::from(p), r.weight, i);
-            ranked += usize::from((s > 0.0) & (p < r.max));
+        out.resize(n, 0);
+        let mut jobs: Vec<_> = regions
+            .chunks(CHUNK)
+            .zip(self.share.chunks(CHUNK))
+            .zip(out.chunks_mut(CHUNK))
+            .zip(self.ranked[..n].chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(c, (((regions, shares), out), ranked))| {
+                (c * CHUNK, regions, shares, out, ranked, Floors::default())
+            })
+            .collect();
+        executor.for_each(&mut jobs, &|(
+            start,
+            regions,
+            shares,
+            out,
+            ranked,
+            floors,
+        )| {
+            *floors = floor_targets(*start, regions, shares, lambda, out, ranked);
+        });
+        let floors: Vec<Floors> = jobs.into_iter().map(|job| job.5).collect();
+        // The ranked regions of every chunk, moved together at the front of `ranked`.
+        let (mut total, mut ranked) = (0u64, 0);
+        for (c, f) in floors.iter().enumerate() {
+            let start = c * CHUNK;
+            self.ranked.copy_within(start..start + f.ranked, ranked);
+            ranked += f.ranked;
+            total += f.total;
+            report.at_min += f.at_min;
+            report.at_max += f.at_max;
         }
         let ranked = &mut self.ranked[..ranked];
-        report.at_min += at_min;
-        report.at_max += at_max;
         if total < available {
             // Largest remainder first, then the larger weight (so a larger region never gets
             // less than a smaller one, even when α = ∞ makes their targets equal), then the
@@ -575,6 +677,97 @@ impl Allocator {
     }
 }
 
+/// What the water level's first round learns from one chunk of regions.
+#[derive(Clone, Copy, Debug, Default)]
+struct Gathered {
+    /// Regions with a share, written to the front of the chunk's `pending`.
+    open: usize,
+    /// `Σ min` of the regions without a share.
+    fixed: f64,
+    /// `Σ max` of the regions with a share.
+    max_total: f64,
+    /// `Σ clamp(p·s, min, max)` over the regions with a share, at each pivot `p`.
+    sums: [f64; 3],
+}
+
+/// The water level's first pass over one chunk: its regions with a share into `pending`
+/// (at the front, in order), and the chunk's part of `g` at the three pivots.
+///
+/// The loop writes its output slot unconditionally and advances by a 0/1 flag, and adds
+/// flag-weighted terms instead of branching (see [`Allocator::water_level`]).
+fn gather(
+    regions: &[RegionInput],
+    shares: &[f64],
+    pending: &mut [Pending],
+    [p0, p1, p2]: [f64; 3],
+) -> Gathered {
+    let mut g = Gathered::default();
+    for (r, &s) in regions.iter().zip(shares) {
+        let (min, max) = (f64::from(r.min), f64::from(r.max));
+        let active = s > 0.0;
+        let inverse = 1.0 / s; // ∞ when inactive, and then unused
+        pending[g.open] = Pending {
+            lower: min * inverse,
+            upper: max * inverse,
+            share: s,
+            min,
+            max,
+        };
+        g.open += usize::from(active);
+        g.fixed += min * flag(!active);
+        g.max_total += max * flag(active);
+        // An inactive region has s = 0, so these add min · 0.
+        let weight = flag(active);
+        g.sums[0] += weight * (p0 * s).clamp(min, max);
+        g.sums[1] += weight * (p1 * s).clamp(min, max);
+        g.sums[2] += weight * (p2 * s).clamp(min, max);
+    }
+    g
+}
+
+/// What rounding one chunk down gave.
+#[derive(Clone, Copy, Debug, Default)]
+struct Floors {
+    /// `Σ ⌊pᵢ⌋`.
+    total: u64,
+    /// Regions at (or clamped up to) their `min`.
+    at_min: usize,
+    /// Regions with a share clamped down to their `max`.
+    at_max: usize,
+    /// Regions that may take one more triangle, ranked at the front of the chunk's `ranked`.
+    ranked: usize,
+}
+
+/// One chunk's targets `clamp(λ·sᵢ, minᵢ, maxᵢ)` rounded down into `out`, and the rank keys
+/// of the regions that can take one more triangle into `ranked` (at the front). `start` is the
+/// chunk's first region.
+///
+/// Branch-free again. A weightless region has λ·0 = 0 ≤ min, so it lands on its min with no
+/// remainder, and it is never ranked for an extra triangle.
+fn floor_targets(
+    start: usize,
+    regions: &[RegionInput],
+    shares: &[f64],
+    lambda: f64,
+    out: &mut [u32],
+    ranked: &mut [u128],
+) -> Floors {
+    let mut f = Floors::default();
+    for (i, ((r, &s), slot)) in regions.iter().zip(shares).zip(out).enumerate() {
+        let (min, max) = (f64::from(r.min), f64::from(r.max));
+        let want = lambda * s;
+        let t = want.clamp(min, max);
+        let p = t as u32; // t ≥ 0, so truncation is the floor; in [min, max]
+        *slot = p;
+        f.total += u64::from(p);
+        f.at_min += usize::from(want <= min);
+        f.at_max += usize::from((want >= max) & (s > 0.0));
+        ranked[f.ranked] = rank_key(t - f64::from(p), r.weight, start + i);
+        f.ranked += usize::from((s > 0.0) & (p < r.max));
+    }
+    f
+}
+
 /// The cube root of a positive normal `x`: a bit-level first guess (about 3 % off), then three
 /// Halley steps, each of which triples the correct digits; within 2 ulp, and about five times
 /// faster than `f64::cbrt` (α = 3 is the default, so this is the common path).
@@ -600,15 +793,15 @@ fn flag(condition: bool) -> f64 {
 /// A share below [`MIN_SHARE`] counts as 0 too: its region's ideal count is below a triangle
 /// for any budget, and `1 / s` must stay finite for the breakpoints.
 #[inline]
-fn fill_shares(shares: &mut Vec<f64>, regions: &[RegionInput], scale: f64, f: impl Fn(f64) -> f64) {
-    shares.extend(regions.iter().map(|r| {
-        if r.weight > 0.0 && r.max > r.min {
+fn fill_shares(shares: &mut [f64], regions: &[RegionInput], scale: f64, f: impl Fn(f64) -> f64) {
+    for (share, r) in shares.iter_mut().zip(regions) {
+        *share = if r.weight > 0.0 && r.max > r.min {
             let s = f(f64::from(r.weight) * scale);
             if s >= MIN_SHARE { s } else { 0.0 }
         } else {
             0.0
-        }
-    }));
+        };
+    }
 }
 
 /// The smallest share (relative to the largest, which is 1) that takes part in the split;
@@ -689,24 +882,60 @@ fn rank_index(key: u128) -> usize {
     !(key as u32) as usize
 }
 
-/// The checks listed on [`allocate`].
-fn validate(params: &AllocationParams, regions: &[RegionInput]) -> Result<(), BudgetError> {
+/// What [`scan`] adds up over the regions.
+#[derive(Clone, Copy, Debug, Default)]
+struct Totals {
+    /// `Σ minᵢ`.
+    min_total: u64,
+    /// The largest weight (`0` when there is none).
+    max_weight: f32,
+}
+
+/// The checks listed on [`allocate`] (the first invalid region in order is the one named),
+/// and the totals the allocation starts from.
+fn scan(
+    params: &AllocationParams,
+    regions: &[RegionInput],
+    executor: &impl Executor,
+) -> Result<Totals, BudgetError> {
     if params.alpha.is_nan() || params.alpha <= 0.0 {
         return Err(BudgetError::InvalidAlpha(params.alpha));
     }
     if params.budget == 0 {
         return Err(BudgetError::ZeroBudget);
     }
-    for (region, r) in regions.iter().enumerate() {
+    let mut jobs: Vec<_> = regions
+        .chunks(CHUNK)
+        .enumerate()
+        .map(|(c, regions)| (c * CHUNK, regions, Ok(Totals::default())))
+        .collect();
+    executor.for_each(&mut jobs, &|(start, regions, totals)| {
+        *totals = validate(*start, regions).map(|()| Totals {
+            min_total: regions.iter().map(|r| u64::from(r.min)).sum(),
+            max_weight: regions.iter().fold(0.0f32, |m, r| m.max(r.weight)),
+        });
+    });
+    let mut all = Totals::default();
+    for (_, _, totals) in jobs {
+        let totals = totals?;
+        all.min_total += totals.min_total;
+        all.max_weight = all.max_weight.max(totals.max_weight);
+    }
+    Ok(all)
+}
+
+/// Every region's weight and bounds; `start` is the index of `regions[0]`.
+fn validate(start: usize, regions: &[RegionInput]) -> Result<(), BudgetError> {
+    for (i, r) in regions.iter().enumerate() {
         if !(r.weight.is_finite() && r.weight >= 0.0) {
             return Err(BudgetError::InvalidWeight {
-                region,
+                region: start + i,
                 weight: r.weight,
             });
         }
         if r.min > r.max {
             return Err(BudgetError::MinAboveMax {
-                region,
+                region: start + i,
                 min: r.min,
                 max: r.max,
             });
@@ -726,6 +955,81 @@ mod tests {
             max,
             current: 0,
         }
+    }
+
+    /// Runs the chunks last first, each on its own scoped thread.
+    struct Backwards;
+
+    impl Executor for Backwards {
+        fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
+            std::thread::scope(|scope| {
+                for item in items.iter_mut().rev() {
+                    scope.spawn(move || f(item));
+                }
+            });
+        }
+    }
+
+    #[test]
+    fn any_executor_gives_the_sequential_result() {
+        // Several chunks, a partial last one, weightless and pinned regions among them.
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let regions: Vec<RegionInput> = (0..3 * CHUNK + 517)
+            .map(|_| {
+                let min = (next() % 40) as u32;
+                let max = min + (next() % 400) as u32 * u32::from(next() % 13 != 0);
+                let weight = if next() % 7 == 0 {
+                    0.0
+                } else {
+                    (next() % 1_000_000) as f32 * 0.37
+                };
+                RegionInput {
+                    weight,
+                    min,
+                    max,
+                    current: (next() % 420) as u32,
+                }
+            })
+            .collect();
+        for (budget, alpha, hysteresis) in [
+            (1_000_000, 3.0, 0),
+            (400_000, 1.0, 8),
+            (150_000, 2.0, 0),
+            (300_000, 0.7, 3),
+            (u32::MAX, 3.0, 0),
+            (10, 3.0, 0),
+        ] {
+            let params = AllocationParams {
+                budget,
+                alpha,
+                hysteresis,
+                fixed_cost: 0,
+            };
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            let report_a = Allocator::new()
+                .allocate(&params, &regions, &mut a)
+                .unwrap();
+            let report_b = Allocator::new()
+                .allocate_with(&params, &regions, &mut b, &Backwards)
+                .unwrap();
+            assert_eq!((report_a, &a), (report_b, &b), "budget {budget}, α {alpha}");
+            assert_eq!(a.len(), regions.len());
+        }
+        // The first invalid region in order is named, wherever the chunks finish.
+        let mut bad = regions.clone();
+        bad[2 * CHUNK + 5].min = bad[2 * CHUNK + 5].max + 1;
+        bad[CHUNK + 9].weight = f32::NAN;
+        let params = AllocationParams::with_budget(1_000);
+        let err = Allocator::new()
+            .allocate_with(&params, &bad, &mut Vec::new(), &Backwards)
+            .unwrap_err();
+        assert!(matches!(err, BudgetError::InvalidWeight { region, .. } if region == CHUNK + 9));
     }
 
     #[test]

@@ -84,7 +84,8 @@ mod obb;
 mod projected_area;
 
 pub use allocate::{
-    AllocationParams, AllocationReport, Allocator, DEFAULT_ALPHA, RegionInput, allocate,
+    AllocationParams, AllocationReport, Allocator, DEFAULT_ALPHA, Executor, RegionInput,
+    Sequential, allocate,
 };
 pub use error::BudgetError;
 pub use obb::{Obb, fit_aabb, fit_obb, fit_obb_pca};

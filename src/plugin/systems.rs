@@ -6,7 +6,7 @@ use super::{
     MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
-use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
+use crate::budget::{Allocator, Executor, Obb, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
 use bevy::camera::visibility::NoFrustumCulling;
@@ -36,6 +36,16 @@ pub(super) fn par_chunks<T: Send, R: Send + 'static>(
     let pool = ComputeTaskPool::get_or_init(TaskPool::default);
     let size = items.len().div_ceil(4 * (pool.thread_num() + 1)).max(1);
     items.par_chunk_map_mut(pool, size, |_, chunk| f(chunk))
+}
+
+/// The allocator's passes on the compute task pool, with the calling thread (see
+/// [`par_chunks`]).
+struct ComputePool;
+
+impl Executor for ComputePool {
+    fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
+        par_chunks(items, |chunk| chunk.iter_mut().for_each(f));
+    }
 }
 
 /// Buffers kept across frames.
@@ -398,10 +408,12 @@ fn allocate(
         scratch.counts.clear();
         scratch.counts.extend(scratch.inputs.iter().map(|i| i.max));
     } else {
-        match scratch
-            .allocator
-            .allocate(&params, &scratch.inputs, &mut scratch.counts)
-        {
+        match scratch.allocator.allocate_with(
+            &params,
+            &scratch.inputs,
+            &mut scratch.counts,
+            &ComputePool,
+        ) {
             Ok(report) => {
                 scratch.warned_budget = false;
                 if report.infeasible {
