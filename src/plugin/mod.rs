@@ -258,6 +258,10 @@ pub struct MultiresInstance {
     bounds: Obb,
     caches: RegionCaches,
     targets: Vec<u32>,
+    /// Where this model's regions sit in `Allocate`'s inputs and counts: the allocation that
+    /// last included it (`AslodScratch::serial`), and its first region there. `SelectLod`
+    /// copies its `targets` from those counts when that allocation is this frame's.
+    input_run: (u64, usize),
     meshes: Vec<Handle<Mesh>>,
     /// `meshes`' ids, for `Upload`: reading one from its handle follows the handle's pointer,
     /// a cache miss per region mesh.
@@ -289,7 +293,9 @@ impl MultiresInstance {
         &self.regions
     }
 
-    /// Per region, the triangle count the last allocation gave it.
+    /// Per region, the triangle count the last allocation gave it (taken over in
+    /// [`AslodSystems::SelectLod`]: between `Allocate` and `SelectLod` it still holds the
+    /// previous frame's).
     #[inline]
     #[must_use]
     pub fn targets(&self) -> &[u32] {

@@ -55,6 +55,8 @@ pub(crate) struct AslodScratch {
     cameras: Vec<ProjectedAreaCamera>,
     inputs: Vec<RegionInput>,
     counts: Vec<u32>,
+    /// Counts the allocations; [`MultiresInstance::input_run`] names the one it took part in.
+    serial: u64,
     warned_budget: bool,
 }
 
@@ -207,6 +209,7 @@ fn spawn_regions(
             obbs: asset.obbs().clone(),
             regions,
             targets,
+            input_run: (0, 0),
             mesh_ids: handles.iter().map(Handle::id).collect(),
             meshes: handles,
             skin: state,
@@ -364,9 +367,12 @@ fn allocate(
         .sum();
     let fixed_cost = u32::try_from(fixed_cost).unwrap_or(u32::MAX);
 
-    // Each model's regions fill one run of `inputs`, in query order (the targets are read
-    // back below in the same order); the runs are filled in parallel on the compute pool.
-    let items: Vec<_> = models.iter().collect();
+    // Each model's regions fill one run of `inputs`, in query order, and the model notes
+    // where its run starts (`SelectLod` reads its targets from the same run of `counts`, in
+    // parallel); the runs are filled in parallel on the compute pool.
+    scratch.serial += 1;
+    let serial = scratch.serial;
+    let items: Vec<_> = models.iter_mut().collect();
     let model_count = items.len();
     let total: usize = items
         .iter()
@@ -376,16 +382,20 @@ fn allocate(
     scratch.inputs.resize(total, RegionInput::default());
     let mut jobs = Vec::with_capacity(items.len());
     let mut rest = scratch.inputs.as_mut_slice();
+    let mut offset = 0;
     for item in items {
-        let (run, tail) = rest.split_at_mut(item.0.regions.regions().len());
-        jobs.push((item, run));
+        let n = item.0.regions.regions().len();
+        let (run, tail) = rest.split_at_mut(n);
+        jobs.push((item, offset, run));
+        offset += n;
         rest = tail;
     }
     let cameras = &scratch.cameras;
     let full_detail = full_detail.0;
     let fill = |chunk: &mut [AreaJob<'_>]| {
         let mut local = Vec::with_capacity(cameras.len());
-        for ((instance, transform, priority), out) in chunk {
+        for ((instance, transform, priority), offset, out) in chunk {
+            instance.input_run = (serial, *offset);
             region_inputs(
                 instance,
                 transform,
@@ -429,12 +439,6 @@ fn allocate(
             }
         }
     }
-    let mut next = scratch.counts.iter();
-    for (mut instance, _, _) in &mut models {
-        for target in &mut instance.targets {
-            *target = next.next().copied().unwrap_or(*target);
-        }
-    }
     stats.allocated = true;
     let ms = start.elapsed().as_secs_f64() * 1e3;
     stats.allocation_ms = ms;
@@ -445,10 +449,11 @@ fn allocate(
 /// One model of `Allocate` and the run of inputs it fills.
 type AreaJob<'a> = (
     (
-        &'a MultiresInstance,
+        Mut<'a, MultiresInstance>,
         &'a GlobalTransform,
         Option<&'a LodPriority>,
     ),
+    usize,
     &'a mut [RegionInput],
 );
 
@@ -520,15 +525,24 @@ fn region_inputs(
 /// skinned models write theirs in `Deform`.
 fn select_lod(
     mut models: Query<&mut MultiresInstance>,
+    scratch: Res<AslodScratch>,
     mut stats: ResMut<AslodStats>,
     _main_thread: NonSendMarker,
 ) {
     let start = Instant::now();
     let mut instances: Vec<Mut<MultiresInstance>> = models.iter_mut().collect();
+    // The models this frame's allocation covered take their targets from its counts.
+    let fresh = stats.allocated.then_some(scratch.serial);
+    let counts = &scratch.counts;
     let totals = par_chunks(&mut instances, |chunk| {
         let mut triangles = 0u64;
         for instance in chunk {
             let instance = &mut **instance;
+            let (serial, start) = instance.input_run;
+            if fresh == Some(serial) {
+                let n = instance.targets.len();
+                instance.targets.copy_from_slice(&counts[start..start + n]);
+            }
             for (r, &target) in instance.targets.iter().enumerate() {
                 triangles +=
                     instance
