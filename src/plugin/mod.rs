@@ -276,6 +276,8 @@ pub struct MultiresInstance {
     /// mesh's old buffer, so steady state allocates nothing. 16-bit wherever the region's
     /// vertices fit (half the bytes to write, keep and upload).
     staged: Vec<(bool, bevy::mesh::Indices)>,
+    /// The regions whose `staged` flag `SelectLod` raised since the last `Upload`, each once.
+    ready: Vec<u32>,
 }
 
 impl MultiresInstance {

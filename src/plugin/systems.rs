@@ -214,6 +214,7 @@ fn spawn_regions(
             meshes: handles,
             skin: state,
             staged,
+            ready: Vec::new(),
             region_entities,
         });
     }
@@ -551,14 +552,19 @@ fn select_lod(
                         as u64;
             }
             if instance.skin.is_none() {
-                for (r, (ready, buffer)) in instance.staged.iter_mut().enumerate() {
-                    if instance.caches.is_dirty(r) {
-                        let (caches, regions) = (&mut instance.caches, &instance.regions);
-                        match buffer {
-                            Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
-                            Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
-                        };
-                        *ready = true;
+                // Only the dirty regions' staging slots are touched.
+                for r in 0..instance.staged.len() {
+                    if !instance.caches.is_dirty(r) {
+                        continue;
+                    }
+                    let (ready, buffer) = &mut instance.staged[r];
+                    let (caches, regions) = (&mut instance.caches, &instance.regions);
+                    match buffer {
+                        Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
+                        Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
+                    };
+                    if !std::mem::replace(ready, true) {
+                        instance.ready.push(r as u32);
                     }
                 }
             }
@@ -711,7 +717,10 @@ fn upload(
     for mut instance in &mut models {
         let instance = &mut *instance;
         changed += upload_skinned(instance, &mut meshes);
-        for (r, (ready, buffer)) in instance.staged.iter_mut().enumerate() {
+        // Only the regions `SelectLod` wrote: their staging slots and meshes.
+        for r in instance.ready.drain(..) {
+            let r = r as usize;
+            let (ready, buffer) = &mut instance.staged[r];
             if !std::mem::take(ready) {
                 continue;
             }
