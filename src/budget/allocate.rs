@@ -229,8 +229,9 @@ struct Pending {
 /// The phases, in the order [`Allocator::allocate`] runs them:
 ///
 /// 1. **validate** the parameters and every region (the table above);
-/// 2. **shares** `sᵢ = (wᵢ / w_max)^(1/α)`, in `f64` and normalised by the largest weight so
-///    that neither a huge α nor a huge weight under- or overflows;
+/// 2. **shares** `sᵢ = wᵢ^(1/α)` in `f64`, in the same pass for α ≥ 1 (within f64's range
+///    for any f32 weight); for α < 1 normalised by the largest weight, `(wᵢ / w_max)^(1/α)`,
+///    so that a huge exponent neither under- nor overflows;
 /// 3. **water level**: the scale `λ` with `Σ clamp(λ·sᵢ, minᵢ, maxᵢ) = P'`, found by a
 ///    quartile search over the regions' breakpoints `minᵢ/sᵢ` and `maxᵢ/sᵢ` (`O(n)`, no sort;
 ///    a reused [`Allocator`] starts from a bracket around its last level, which after a small
@@ -302,7 +303,18 @@ impl Allocator {
         executor: &impl Executor,
     ) -> Result<AllocationReport, BudgetError> {
         out.clear();
-        let totals = scan(params, regions, executor)?;
+        // For α ≥ 1, `wᵢ^(1/α)` stays well inside f64's range for every f32 weight: the
+        // shares need no normalising, and the validation pass computes them too. A smaller
+        // α needs the largest weight first (a second pass).
+        let fused = params.alpha >= 1.0;
+        self.share.clear();
+        self.share.resize(regions.len(), 0.0);
+        let totals = scan(
+            params,
+            regions,
+            fused.then_some(&mut self.share[..]),
+            executor,
+        )?;
         let available = u64::from(params.available());
         let mut report = AllocationReport {
             available,
@@ -316,7 +328,9 @@ impl Allocator {
             return Ok(report);
         }
 
-        self.compute_shares(params.alpha, totals.max_weight, regions, executor);
+        if !fused {
+            self.compute_shares(params.alpha, totals.max_weight, regions, executor);
+        }
         match self.water_level(regions, available as f64, executor) {
             None => {
                 // Everything with a weight fits at its maximum.
@@ -338,8 +352,8 @@ impl Allocator {
         Ok(report)
     }
 
-    /// `sᵢ = (wᵢ / w_max)^(1/α)`, `0` for weightless regions and for regions whose bounds
-    /// leave nothing to decide.
+    /// `sᵢ = (wᵢ / w_max)^(1/α)` (for α < 1), `0` for weightless regions and for regions
+    /// whose bounds leave nothing to decide.
     fn compute_shares(
         &mut self,
         alpha: f32,
@@ -347,31 +361,16 @@ impl Allocator {
         regions: &[RegionInput],
         executor: &impl Executor,
     ) {
-        self.share.clear();
-        self.share.resize(regions.len(), 0.0);
         if max_weight <= 0.0 {
             return;
         }
         let scale = 1.0 / f64::from(max_weight);
-        let alpha = f64::from(alpha);
         let mut jobs: Vec<_> = regions
             .chunks(CHUNK)
             .zip(self.share.chunks_mut(CHUNK))
             .collect();
         executor.for_each(&mut jobs, &|(regions, shares)| {
-            if alpha == 1.0 {
-                fill_shares(shares, regions, scale, |x| x);
-            } else if alpha == 2.0 {
-                fill_shares(shares, regions, scale, f64::sqrt);
-            } else if alpha == 3.0 {
-                fill_shares(shares, regions, scale, cbrt_normal);
-            } else if alpha.is_infinite() {
-                fill_shares(shares, regions, scale, |_| 1.0);
-            } else {
-                // log2 then exp2 (glibc's are fast and exact to an ulp); underflow gives 0.
-                let exponent = 1.0 / alpha;
-                fill_shares(shares, regions, scale, |x| (x.log2() * exponent).exp2());
-            }
+            fill_shares(shares, regions, scale, alpha);
         });
     }
 
@@ -901,12 +900,36 @@ fn flag(condition: bool) -> f64 {
     f64::from(u8::from(condition))
 }
 
+/// `shares[i] = (wᵢ · scale)^(1/α)` for regions with a weight and room between their bounds,
+/// else 0.
+fn fill_shares(shares: &mut [f64], regions: &[RegionInput], scale: f64, alpha: f32) {
+    let alpha = f64::from(alpha);
+    if alpha == 1.0 {
+        fill_shares_with(shares, regions, scale, |x| x);
+    } else if alpha == 2.0 {
+        fill_shares_with(shares, regions, scale, f64::sqrt);
+    } else if alpha == 3.0 {
+        fill_shares_with(shares, regions, scale, cbrt_normal);
+    } else if alpha.is_infinite() {
+        fill_shares_with(shares, regions, scale, |_| 1.0);
+    } else {
+        // log2 then exp2 (glibc's are fast and exact to an ulp); underflow gives 0.
+        let exponent = 1.0 / alpha;
+        fill_shares_with(shares, regions, scale, |x| (x.log2() * exponent).exp2());
+    }
+}
+
 /// `shares[i] = f(wᵢ · scale)` for regions with a weight and room between their bounds, else 0.
 ///
 /// A share below [`MIN_SHARE`] counts as 0 too: its region's ideal count is below a triangle
-/// for any budget, and `1 / s` must stay finite for the breakpoints.
+/// for any budget, and `1 / s` must stay finite for the breakpoints (only α < 1 reaches it).
 #[inline]
-fn fill_shares(shares: &mut [f64], regions: &[RegionInput], scale: f64, f: impl Fn(f64) -> f64) {
+fn fill_shares_with(
+    shares: &mut [f64],
+    regions: &[RegionInput],
+    scale: f64,
+    f: impl Fn(f64) -> f64,
+) {
     for (share, r) in shares.iter_mut().zip(regions) {
         *share = if r.weight > 0.0 && r.max > r.min {
             let s = f(f64::from(r.weight) * scale);
@@ -1009,6 +1032,7 @@ struct Totals {
 fn scan(
     params: &AllocationParams,
     regions: &[RegionInput],
+    shares: Option<&mut [f64]>,
     executor: &impl Executor,
 ) -> Result<Totals, BudgetError> {
     if params.alpha.is_nan() || params.alpha <= 0.0 {
@@ -1017,19 +1041,28 @@ fn scan(
     if params.budget == 0 {
         return Err(BudgetError::ZeroBudget);
     }
+    let fill = shares.is_some();
+    let mut shares = shares.map(|s| s.chunks_mut(CHUNK));
     let mut jobs: Vec<_> = regions
         .chunks(CHUNK)
         .enumerate()
-        .map(|(c, regions)| (c * CHUNK, regions, Ok(Totals::default())))
+        .map(|(c, regions)| {
+            let shares = shares.as_mut().and_then(Iterator::next).unwrap_or_default();
+            (c * CHUNK, regions, shares, Ok(Totals::default()))
+        })
         .collect();
-    executor.for_each(&mut jobs, &|(start, regions, totals)| {
+    let alpha = params.alpha;
+    executor.for_each(&mut jobs, &|(start, regions, shares, totals)| {
         *totals = validate(*start, regions).map(|()| Totals {
             min_total: regions.iter().map(|r| u64::from(r.min)).sum(),
             max_weight: regions.iter().fold(0.0f32, |m, r| m.max(r.weight)),
         });
+        if fill && totals.is_ok() {
+            fill_shares(shares, regions, 1.0, alpha);
+        }
     });
     let mut all = Totals::default();
-    for (_, _, totals) in jobs {
+    for (_, _, _, totals) in jobs {
         let totals = totals?;
         all.min_total += totals.min_total;
         all.max_weight = all.max_weight.max(totals.max_weight);
@@ -1189,6 +1222,31 @@ mod tests {
             }
         }
         assert!(hits >= 30, "the guess held in only {hits} of 39 frames");
+    }
+
+    #[test]
+    fn extreme_weights_split_cleanly_for_every_alpha() {
+        // The largest and the smallest (subnormal) f32 weights side by side: shares
+        // unnormalised for α ≥ 1, normalised below it; nothing overflows or turns NaN.
+        let tiny = f32::from_bits(1);
+        let regions = [
+            region(f32::MAX, 0, 1_000),
+            region(1.0, 0, 1_000),
+            region(tiny, 0, 1_000),
+            region(f32::MAX, 0, 1_000),
+        ];
+        for alpha in [0.25, 0.999, 1.0, 1.5, 3.0, 1e30, f32::INFINITY] {
+            let params = AllocationParams {
+                budget: 1_000,
+                alpha,
+                ..Default::default()
+            };
+            let mut out = Vec::new();
+            let report = allocate(&params, &regions, &mut out).unwrap();
+            assert_eq!(report.total, 1_000, "α {alpha}: {out:?}");
+            assert!(out[0] >= out[1] && out[1] >= out[2], "α {alpha}: {out:?}");
+            assert_eq!(out[0], out[3], "α {alpha}: {out:?}");
+        }
     }
 
     #[test]
