@@ -223,6 +223,34 @@ fn bench_allocate(c: &mut Criterion) {
             })
         });
     }
+    // The same allocator on one view after another: each iteration's first round starts from
+    // the last level. Above, the view never changes, so that guess always holds; here two
+    // views alternate whose levels lie far apart (every weight ×8), so it always misses.
+    let far: Vec<RegionInput> = regions
+        .iter()
+        .map(|r| RegionInput {
+            weight: r.weight * 8.0,
+            ..*r
+        })
+        .collect();
+    let params = AllocationParams {
+        budget: 40_000_000,
+        fixed_cost: 100_000,
+        alpha: 3.0,
+        hysteresis: 0,
+    };
+    let mut allocator = Allocator::new();
+    let mut out = Vec::with_capacity(N);
+    let mut flip = false;
+    group.bench_function("100k/alpha3_views_far_apart", |b| {
+        b.iter(|| {
+            flip = !flip;
+            let view = if flip { &far } else { &regions };
+            allocator
+                .allocate(&params, black_box(view), &mut out)
+                .unwrap()
+        })
+    });
     group.finish();
 }
 

@@ -388,9 +388,10 @@ impl Allocator {
     /// The first round's pivots come from the last call's level when there is one (a bracket
     /// of twice the level's last move either side, at least 1/64 and at most 1/8 of it):
     /// if the root lies inside, that pass already settles every region without a
-    /// breakpoint in the bracket; if not, the first round runs again on sampled pivots. In
-    /// the plugin bench the guess holds in 110 of 116 frames, and then about 3 % of the
-    /// regions with a share stay open after the first round instead of all of them.
+    /// breakpoint in the bracket; if not, every region with a share stays open, and the
+    /// three pivots still narrow the bracket (the pass keeps both lists). In the plugin
+    /// bench the guess holds in 110 of 116 frames, and then about 3 % of the regions with a
+    /// share stay open after the first round instead of all of them.
     /// Once no breakpoint is left inside the bracket, `g`'s offset and slope there are
     /// summed over all regions in chunk order, so the level is the same whichever way the
     /// search went.
@@ -417,39 +418,41 @@ impl Allocator {
         // when the guess misses, the pivots come from the breakpoints of an evenly strided
         // sample and every region with a share stays open.
         let guess = self.last_level.map(guessed_bracket);
-        let mut found = None;
-        for guess in [guess, None] {
-            let (pivots, bracket) = match guess {
-                Some((a, level, b)) => (
-                    Pivots {
-                        values: [a, level, b],
-                        count: 3,
-                    },
-                    (a, b),
-                ),
-                None => (
-                    self.sampled_pivots(regions),
-                    (f64::NEG_INFINITY, f64::INFINITY),
-                ),
-            };
-            let pass = self.gather_all(regions, pivots.padded(), bracket, executor);
-            if pass.fixed + pass.max_total <= target {
-                return None;
-            }
-            let (mut lo, mut hi) = (0.0f64, f64::INFINITY);
-            pivots.narrow(&mut lo, &mut hi, |k| pass.fixed + pass.sums[k] <= target);
-            // What the pass settled holds only if the root lies inside the bracket.
-            if bracket.0 <= lo && hi <= bracket.1 {
-                found = Some((pass, lo, hi));
-                break;
-            }
+        let (pivots, bracket) = match guess {
+            Some((a, level, b)) => (
+                Pivots {
+                    values: [a, level, b],
+                    count: 3,
+                },
+                (a, b),
+            ),
+            None => (
+                self.sampled_pivots(regions),
+                (f64::NEG_INFINITY, f64::INFINITY),
+            ),
+        };
+        let pass = self.gather_all(regions, pivots.padded(), bracket, executor);
+        if pass.fixed + pass.max_total <= target {
+            return None;
         }
-        let (pass, mut lo, mut hi) = found?;
-        let mut len = pass.open;
-        let mut fixed = pass.fixed + pass.at_min + pass.at_max;
-        let mut slope = pass.linear;
+        let (mut lo, mut hi) = (0.0f64, f64::INFINITY);
+        pivots.narrow(&mut lo, &mut hi, |k| pass.fixed + pass.sums[k] <= target);
+        // What the pass settled holds if the root lies inside the bracket: then only the
+        // regions it left open go on. If not, every region with a share does, from the
+        // bracket the three pivots gave (a round as the unguessed search has).
+        let (mut len, mut fixed, mut slope) = if bracket.0 <= lo && hi <= bracket.1 {
+            std::mem::swap(&mut self.pending, &mut self.pending_next);
+            (
+                pass.open,
+                pass.fixed + pass.at_min + pass.at_max,
+                pass.linear,
+            )
+        } else {
+            (pass.active, pass.fixed, 0.0)
+        };
 
         let mut exact_median = false;
+        let mut poor_rounds = 0;
         loop {
             let pivots = self.sample_pivots(len, lo, hi, exact_median);
             if pivots.count == 0 {
@@ -476,7 +479,15 @@ impl Allocator {
                 kept += usize::from(open);
             }
             std::mem::swap(&mut self.pending, &mut self.pending_next);
-            exact_median = kept * 8 > len * 7;
+            // Two rounds in a row that shrink too little (unlucky samples) make the next one
+            // use the exact median; one alone is common after a missed guess, whose bracket
+            // still holds most breakpoints.
+            poor_rounds = if kept * 8 > len * 7 {
+                poor_rounds + 1
+            } else {
+                0
+            };
+            exact_median = poor_rounds >= 2;
             len = kept;
             fixed += at_min + at_max;
             slope += linear_share;
@@ -527,8 +538,8 @@ impl Allocator {
     }
 
     /// The first round over every region, by chunks on `executor`: `g` at the three pivots,
-    /// and the regions with a share not settled by `bracket` moved together at the front of
-    /// `pending`.
+    /// the regions with a share at the front of `pending`, and those of them that `bracket`
+    /// does not settle at the front of `pending_next`.
     fn gather_all(
         &mut self,
         regions: &[RegionInput],
@@ -541,16 +552,23 @@ impl Allocator {
             .chunks(CHUNK)
             .zip(self.share.chunks(CHUNK))
             .zip(self.pending[..n].chunks_mut(CHUNK))
-            .map(|((regions, shares), pending)| (regions, shares, pending, Gathered::default()))
+            .zip(self.pending_next[..n].chunks_mut(CHUNK))
+            .map(|(((regions, shares), active), open)| {
+                (regions, shares, active, open, Gathered::default())
+            })
             .collect();
-        executor.for_each(&mut jobs, &|(regions, shares, pending, gathered)| {
-            *gathered = gather(regions, shares, pending, pivots, bracket);
+        executor.for_each(&mut jobs, &|(regions, shares, active, open, gathered)| {
+            *gathered = gather(regions, shares, active, open, pivots, bracket);
         });
-        let parts: Vec<Gathered> = jobs.into_iter().map(|job| job.3).collect();
+        let parts: Vec<Gathered> = jobs.into_iter().map(|job| job.4).collect();
         let mut all = Gathered::default();
         for (c, part) in parts.iter().enumerate() {
             let start = c * CHUNK;
-            self.pending.copy_within(start..start + part.open, all.open);
+            self.pending
+                .copy_within(start..start + part.active, all.active);
+            self.pending_next
+                .copy_within(start..start + part.open, all.open);
+            all.active += part.active;
             all.open += part.open;
             all.fixed += part.fixed;
             all.max_total += part.max_total;
@@ -758,8 +776,10 @@ fn guessed_bracket((level, moved): (f64, f64)) -> (f64, f64, f64) {
 /// What the water level's first round learns from one chunk of regions.
 #[derive(Clone, Copy, Debug, Default)]
 struct Gathered {
-    /// Regions with a share that the bracket does not settle, written to the front of the
-    /// chunk's `pending`.
+    /// Regions with a share, written to the front of the chunk's `active`.
+    active: usize,
+    /// Those of them that the bracket does not settle, written to the front of the chunk's
+    /// `open`.
     open: usize,
     /// `Σ min` of the regions without a share.
     fixed: f64,
@@ -775,15 +795,17 @@ struct Gathered {
 }
 
 /// The water level's first pass over one chunk: the chunk's part of `g` at the three pivots,
-/// what the bracket `(lo, hi)` settles (nothing for `(-∞, ∞)`), and the regions with a share
-/// that it does not, into `pending` (at the front, in order).
+/// what the bracket `(lo, hi)` settles (nothing for `(-∞, ∞)`), the regions with a share into
+/// `active` and those of them that it does not settle into `open` (each at the front, in
+/// order).
 ///
 /// The loop writes its output slot unconditionally and advances by a 0/1 flag, and adds
 /// flag-weighted terms instead of branching (see [`Allocator::water_level`]).
 fn gather(
     regions: &[RegionInput],
     shares: &[f64],
-    pending: &mut [Pending],
+    active_out: &mut [Pending],
+    open_out: &mut [Pending],
     [p0, p1, p2]: [f64; 3],
     (lo, hi): (f64, f64),
 ) -> Gathered {
@@ -803,7 +825,9 @@ fn gather(
         let above = active & (e.lower >= hi);
         let linear = active & (e.lower <= lo) & (e.upper >= hi);
         let open = active & !(below | above | linear);
-        pending[g.open] = e;
+        active_out[g.active] = e;
+        g.active += usize::from(active);
+        open_out[g.open] = e;
         g.open += usize::from(open);
         g.fixed += min * flag(!active);
         g.max_total += max * flag(active);
