@@ -540,9 +540,9 @@ fn select_lod(
         for instance in chunk {
             let instance = &mut **instance;
             let (serial, start) = instance.input_run;
-            if fresh == Some(serial) {
-                let n = instance.targets.len();
-                instance.targets.copy_from_slice(&counts[start..start + n]);
+            let run = counts.get(start..start + instance.targets.len());
+            if let Some(run) = run.filter(|_| fresh == Some(serial)) {
+                instance.targets.copy_from_slice(run);
             }
             for (r, &target) in instance.targets.iter().enumerate() {
                 triangles +=
