@@ -307,7 +307,7 @@ impl Allocator {
         // shares need no normalising, and the validation pass computes them too. A smaller
         // α needs the largest weight first (a second pass).
         let fused = params.alpha >= 1.0;
-        self.share.clear();
+        // Every share is written below; resizing only keeps the length.
         self.share.resize(regions.len(), 0.0);
         let totals = scan(
             params,
@@ -362,6 +362,7 @@ impl Allocator {
         executor: &impl Executor,
     ) {
         if max_weight <= 0.0 {
+            self.share.fill(0.0);
             return;
         }
         let scale = 1.0 / f64::from(max_weight);
@@ -561,15 +562,12 @@ impl Allocator {
             *gathered = gather(regions, shares, active, open, pivots, bracket);
         });
         let parts: Vec<Gathered> = jobs.into_iter().map(|job| job.4).collect();
-        let mut all = Gathered::default();
-        for (c, part) in parts.iter().enumerate() {
-            let start = c * CHUNK;
-            self.pending
-                .copy_within(start..start + part.active, all.active);
-            self.pending_next
-                .copy_within(start..start + part.open, all.open);
-            all.active += part.active;
-            all.open += part.open;
+        let mut all = Gathered {
+            active: pack_chunks(&mut self.pending, parts.iter().map(|p| p.active)),
+            open: pack_chunks(&mut self.pending_next, parts.iter().map(|p| p.open)),
+            ..Gathered::default()
+        };
+        for part in &parts {
             all.fixed += part.fixed;
             all.max_total += part.max_total;
             all.at_min += part.at_min;
@@ -654,12 +652,9 @@ impl Allocator {
             *floors = floor_targets(*start, regions, shares, lambda, out, ranked);
         });
         let floors: Vec<Floors> = jobs.into_iter().map(|job| job.5).collect();
-        // The ranked regions of every chunk, moved together at the front of `ranked`.
-        let (mut total, mut ranked) = (0u64, 0);
-        for (c, f) in floors.iter().enumerate() {
-            let start = c * CHUNK;
-            self.ranked.copy_within(start..start + f.ranked, ranked);
-            ranked += f.ranked;
+        let ranked = pack_chunks(&mut self.ranked, floors.iter().map(|f| f.ranked));
+        let mut total = 0u64;
+        for f in &floors {
             total += f.total;
             report.at_min += f.at_min;
             report.at_max += f.at_max;
@@ -764,6 +759,18 @@ impl Allocator {
             report.released += 1;
         }
     }
+}
+
+/// Moves the first `lens[c]` items of every chunk `c` of `buffer` (chunks of [`CHUNK`])
+/// together at its front, in order, and returns how many there are.
+fn pack_chunks<T: Copy>(buffer: &mut [T], lens: impl IntoIterator<Item = usize>) -> usize {
+    let mut packed = 0;
+    for (c, len) in lens.into_iter().enumerate() {
+        let start = c * CHUNK;
+        buffer.copy_within(start..start + len, packed);
+        packed += len;
+    }
+    packed
 }
 
 /// The first round's bracket and middle pivot, from the last level and how far it moved
@@ -1065,7 +1072,7 @@ fn scan(
     if params.budget == 0 {
         return Err(BudgetError::ZeroBudget);
     }
-    let fill = shares.is_some();
+    // Without `shares`, every chunk gets an empty slice to fill: nothing.
     let mut shares = shares.map(|s| s.chunks_mut(CHUNK));
     let mut jobs: Vec<_> = regions
         .chunks(CHUNK)
@@ -1081,7 +1088,7 @@ fn scan(
             min_total: regions.iter().map(|r| u64::from(r.min)).sum(),
             max_weight: regions.iter().fold(0.0f32, |m, r| m.max(r.weight)),
         });
-        if fill && totals.is_ok() {
+        if totals.is_ok() {
             fill_shares(shares, regions, 1.0, alpha);
         }
     });
