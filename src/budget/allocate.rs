@@ -309,12 +309,28 @@ impl Allocator {
         let fused = params.alpha >= 1.0;
         // Every share is written below; resizing only keeps the length.
         self.share.resize(regions.len(), 0.0);
-        let totals = scan(
+        if self.pending.len() < regions.len() {
+            self.pending.resize(regions.len(), Pending::default());
+            self.pending_next.resize(regions.len(), Pending::default());
+        }
+        // With the shares in this pass and a level to guess from, the water level's first
+        // round runs in it too: one pass over the regions fewer.
+        let guess = self.last_level.filter(|_| fused).map(guessed_bracket);
+        let first = guess.map(|(a, level, b)| FirstRound {
+            pivots: Pivots {
+                values: [a, level, b],
+                count: 3,
+            },
+            bracket: (a, b),
+        });
+        let (totals, parts) = scan(
             params,
             regions,
             fused.then_some(&mut self.share[..]),
+            first.map(|f| (f, &mut self.pending_next[..regions.len()])),
             executor,
         )?;
+        let first = first.map(|f| (f, self.combine(&parts)));
         let available = u64::from(params.available());
         let mut report = AllocationReport {
             available,
@@ -331,7 +347,7 @@ impl Allocator {
         if !fused {
             self.compute_shares(params.alpha, totals.max_weight, regions, executor);
         }
-        match self.water_level(regions, available as f64, executor) {
+        match self.water_level(regions, available as f64, first, executor) {
             None => {
                 // Everything with a weight fits at its maximum.
                 report.saturated = true;
@@ -404,53 +420,62 @@ impl Allocator {
         &mut self,
         regions: &[RegionInput],
         target: f64,
+        first: Option<(FirstRound, Gathered)>,
         executor: &impl Executor,
     ) -> Option<f64> {
-        let n = regions.len();
-        for buffer in [&mut self.pending, &mut self.pending_next] {
-            if buffer.len() < n {
-                buffer.resize(n, Pending::default());
+        // Round one runs during the pass that gathers the open regions (the validation pass,
+        // when it computed the shares). With a level from the last call, its pivots are that
+        // level and a bracket around it, which the pass also settles regions against: after a
+        // small change of view the root lies inside, and only the few regions with a
+        // breakpoint in the bracket stay open. Without one, the pivots come from the
+        // breakpoints of an evenly strided sample and every region with a share stays open.
+        let (round, pass) = match first {
+            Some(done) => done,
+            None => {
+                let round = match self.last_level.map(guessed_bracket) {
+                    Some((a, level, b)) => FirstRound {
+                        pivots: Pivots {
+                            values: [a, level, b],
+                            count: 3,
+                        },
+                        bracket: (a, b),
+                    },
+                    None => FirstRound {
+                        pivots: self.sampled_pivots(regions, 0.0, f64::INFINITY),
+                        bracket: (f64::NEG_INFINITY, f64::INFINITY),
+                    },
+                };
+                (round, self.gather_all(regions, round, executor))
             }
-        }
-        // Round one runs during the pass that gathers the open regions. With a level from the
-        // last call, its pivots are that level and a bracket around it, which the pass also
-        // settles regions against: after a small change of view the root lies inside, and
-        // only the few regions with a breakpoint in the bracket stay open. Without one, or
-        // when the guess misses, the pivots come from the breakpoints of an evenly strided
-        // sample and every region with a share stays open.
-        let guess = self.last_level.map(guessed_bracket);
-        let (pivots, bracket) = match guess {
-            Some((a, level, b)) => (
-                Pivots {
-                    values: [a, level, b],
-                    count: 3,
-                },
-                (a, b),
-            ),
-            None => (
-                self.sampled_pivots(regions),
-                (f64::NEG_INFINITY, f64::INFINITY),
-            ),
         };
-        let pass = self.gather_all(regions, pivots.padded(), bracket, executor);
         if pass.fixed + pass.max_total <= target {
             return None;
         }
         let (mut lo, mut hi) = (0.0f64, f64::INFINITY);
+        let FirstRound { pivots, bracket } = round;
         pivots.narrow(&mut lo, &mut hi, |k| pass.fixed + pass.sums[k] <= target);
-        // What the pass settled holds if the root lies inside the bracket: then only the
-        // regions it left open go on. If not, every region with a share does, from the
-        // bracket the three pivots gave (a round as the unguessed search has).
-        let (mut len, mut fixed, mut slope) = if bracket.0 <= lo && hi <= bracket.1 {
-            std::mem::swap(&mut self.pending, &mut self.pending_next);
-            (
-                pass.open,
-                pass.fixed + pass.at_min + pass.at_max,
-                pass.linear,
-            )
+        // What the pass settled holds if the root lies inside its bracket: then only the
+        // regions it left open go on. If not (a missed guess), a second pass settles every
+        // region against the bracket the three pivots gave, with pivots sampled inside it.
+        let pass = if bracket.0 <= lo && hi <= bracket.1 {
+            pass
         } else {
-            (pass.active, pass.fixed, 0.0)
+            let round = FirstRound {
+                pivots: self.sampled_pivots(regions, lo, hi),
+                bracket: (lo, hi),
+            };
+            let pass = self.gather_all(regions, round, executor);
+            round
+                .pivots
+                .narrow(&mut lo, &mut hi, |k| pass.fixed + pass.sums[k] <= target);
+            pass
         };
+        std::mem::swap(&mut self.pending, &mut self.pending_next);
+        let (mut len, mut fixed, mut slope) = (
+            pass.open,
+            pass.fixed + pass.at_min + pass.at_max,
+            pass.linear,
+        );
 
         let mut exact_median = false;
         let mut poor_rounds = 0;
@@ -522,9 +547,9 @@ impl Allocator {
         Some(level)
     }
 
-    /// Pivots for the first round: quartiles of the breakpoints of an evenly strided sample
-    /// of the regions.
-    fn sampled_pivots(&mut self, regions: &[RegionInput]) -> Pivots {
+    /// Pivots for a first round: quartiles of the breakpoints inside `(lo, hi)` of an evenly
+    /// strided sample of the regions.
+    fn sampled_pivots(&mut self, regions: &[RegionInput], lo: f64, hi: f64) -> Pivots {
         let n = regions.len();
         self.breakpoints.clear();
         let stride = (n / 64).max(1);
@@ -535,39 +560,40 @@ impl Allocator {
                 self.breakpoints.push(f64::from(regions[i].max) / s);
             }
         }
-        Pivots::quartiles(&mut self.breakpoints, 0.0, f64::INFINITY)
+        Pivots::quartiles(&mut self.breakpoints, lo, hi)
     }
 
-    /// The first round over every region, by chunks on `executor`: `g` at the three pivots,
-    /// the regions with a share at the front of `pending`, and those of them that `bracket`
-    /// does not settle at the front of `pending_next`.
+    /// A first round over every region, by chunks on `executor`: `g` at the round's pivots,
+    /// and the regions with a share that its bracket does not settle at the front of
+    /// `pending_next`.
     fn gather_all(
         &mut self,
         regions: &[RegionInput],
-        pivots: [f64; 3],
-        bracket: (f64, f64),
+        round: FirstRound,
         executor: &impl Executor,
     ) -> Gathered {
         let n = regions.len();
         let mut jobs: Vec<_> = regions
             .chunks(CHUNK)
             .zip(self.share.chunks(CHUNK))
-            .zip(self.pending[..n].chunks_mut(CHUNK))
             .zip(self.pending_next[..n].chunks_mut(CHUNK))
-            .map(|(((regions, shares), active), open)| {
-                (regions, shares, active, open, Gathered::default())
-            })
+            .map(|((regions, shares), open)| (regions, shares, open, Gathered::default()))
             .collect();
-        executor.for_each(&mut jobs, &|(regions, shares, active, open, gathered)| {
-            *gathered = gather(regions, shares, active, open, pivots, bracket);
+        executor.for_each(&mut jobs, &|(regions, shares, open, gathered)| {
+            *gathered = gather(regions, shares, open, round);
         });
-        let parts: Vec<Gathered> = jobs.into_iter().map(|job| job.4).collect();
+        let parts: Vec<Gathered> = jobs.into_iter().map(|job| job.3).collect();
+        self.combine(&parts)
+    }
+
+    /// The chunks' parts of a first round as one, in chunk order, their open regions packed
+    /// at the front of `pending_next`.
+    fn combine(&mut self, parts: &[Gathered]) -> Gathered {
         let mut all = Gathered {
-            active: pack_chunks(&mut self.pending, parts.iter().map(|p| p.active)),
             open: pack_chunks(&mut self.pending_next, parts.iter().map(|p| p.open)),
             ..Gathered::default()
         };
-        for part in &parts {
+        for part in parts {
             all.fixed += part.fixed;
             all.max_total += part.max_total;
             all.at_min += part.at_min;
@@ -780,13 +806,18 @@ fn guessed_bracket((level, moved): (f64, f64)) -> (f64, f64, f64) {
     (level * (1.0 - half), level, level * (1.0 + half))
 }
 
+/// The water level's first round: its pivots, and the bracket it settles regions against.
+#[derive(Clone, Copy, Debug)]
+struct FirstRound {
+    pivots: Pivots,
+    bracket: (f64, f64),
+}
+
 /// What the water level's first round learns from one chunk of regions.
 #[derive(Clone, Copy, Debug, Default)]
 struct Gathered {
-    /// Regions with a share, written to the front of the chunk's `active`.
-    active: usize,
-    /// Those of them that the bracket does not settle, written to the front of the chunk's
-    /// `open`.
+    /// Regions with a share that the bracket does not settle, written to the front of the
+    /// chunk's `open`.
     open: usize,
     /// `Σ min` of the regions without a share.
     fixed: f64,
@@ -801,21 +832,20 @@ struct Gathered {
     linear: f64,
 }
 
-/// The water level's first pass over one chunk: the chunk's part of `g` at the three pivots,
-/// what the bracket `(lo, hi)` settles (nothing for `(-∞, ∞)`), the regions with a share into
-/// `active` and those of them that it does not settle into `open` (each at the front, in
-/// order).
+/// The water level's first pass over one chunk: the chunk's part of `g` at the round's
+/// pivots, what its bracket `(lo, hi)` settles (nothing for `(-∞, ∞)`), and the regions with
+/// a share that it does not settle into `open` (at the front, in order).
 ///
 /// The loop writes its output slot unconditionally and advances by a 0/1 flag, and adds
 /// flag-weighted terms instead of branching (see [`Allocator::water_level`]).
 fn gather(
     regions: &[RegionInput],
     shares: &[f64],
-    active_out: &mut [Pending],
     open_out: &mut [Pending],
-    [p0, p1, p2]: [f64; 3],
-    (lo, hi): (f64, f64),
+    round: FirstRound,
 ) -> Gathered {
+    let [p0, p1, p2] = round.pivots.padded();
+    let (lo, hi) = round.bracket;
     let mut g = Gathered::default();
     for (r, &s) in regions.iter().zip(shares) {
         let (min, max) = (f64::from(r.min), f64::from(r.max));
@@ -832,8 +862,6 @@ fn gather(
         let above = active & (e.lower >= hi);
         let linear = active & (e.lower <= lo) & (e.upper >= hi);
         let open = active & !(below | above | linear);
-        active_out[g.active] = e;
-        g.active += usize::from(active);
         open_out[g.open] = e;
         g.open += usize::from(open);
         g.fixed += min * flag(!active);
@@ -1059,46 +1087,61 @@ struct Totals {
 }
 
 /// The checks listed on [`allocate`] (the first invalid region in order is the one named),
-/// and the totals the allocation starts from.
+/// and the totals the allocation starts from; with `shares`, the shares for α ≥ 1 too, and
+/// with `first` also the water level's first round over them (its open regions into the
+/// given buffer, by chunks; [`Allocator::combine`] packs them).
 fn scan(
     params: &AllocationParams,
     regions: &[RegionInput],
     shares: Option<&mut [f64]>,
+    first: Option<(FirstRound, &mut [Pending])>,
     executor: &impl Executor,
-) -> Result<Totals, BudgetError> {
+) -> Result<(Totals, Vec<Gathered>), BudgetError> {
     if params.alpha.is_nan() || params.alpha <= 0.0 {
         return Err(BudgetError::InvalidAlpha(params.alpha));
     }
     if params.budget == 0 {
         return Err(BudgetError::ZeroBudget);
     }
-    // Without `shares`, every chunk gets an empty slice to fill: nothing.
+    // Without `shares` (or `first`), every chunk gets an empty slice to fill: nothing.
     let mut shares = shares.map(|s| s.chunks_mut(CHUNK));
+    let (round, open) = first.unzip();
+    let mut open = open.map(|o| o.chunks_mut(CHUNK));
     let mut jobs: Vec<_> = regions
         .chunks(CHUNK)
         .enumerate()
         .map(|(c, regions)| {
             let shares = shares.as_mut().and_then(Iterator::next).unwrap_or_default();
-            (c * CHUNK, regions, shares, Ok(Totals::default()))
+            let open = open.as_mut().and_then(Iterator::next).unwrap_or_default();
+            let result = Ok((Totals::default(), Gathered::default()));
+            (c * CHUNK, regions, shares, open, result)
         })
         .collect();
     let alpha = params.alpha;
-    executor.for_each(&mut jobs, &|(start, regions, shares, totals)| {
-        *totals = validate(*start, regions).map(|()| Totals {
-            min_total: regions.iter().map(|r| u64::from(r.min)).sum(),
-            max_weight: regions.iter().fold(0.0f32, |m, r| m.max(r.weight)),
-        });
-        if totals.is_ok() {
+    executor.for_each(&mut jobs, &|(start, regions, shares, open, result)| {
+        *result = validate(*start, regions).map(|()| {
+            let totals = Totals {
+                min_total: regions.iter().map(|r| u64::from(r.min)).sum(),
+                max_weight: regions.iter().fold(0.0f32, |m, r| m.max(r.weight)),
+            };
             fill_shares(shares, regions, 1.0, alpha);
-        }
+            let gathered = round.map_or_else(Gathered::default, |round| {
+                gather(regions, shares, open, round)
+            });
+            (totals, gathered)
+        });
     });
     let mut all = Totals::default();
-    for (_, _, _, totals) in jobs {
-        let totals = totals?;
+    let mut parts = Vec::with_capacity(if round.is_some() { jobs.len() } else { 0 });
+    for (_, _, _, _, result) in jobs {
+        let (totals, gathered) = result?;
         all.min_total += totals.min_total;
         all.max_weight = all.max_weight.max(totals.max_weight);
+        if round.is_some() {
+            parts.push(gathered);
+        }
     }
-    Ok(all)
+    Ok((all, parts))
 }
 
 /// Every region's weight and bounds; `start` is the index of `regions[0]`.
