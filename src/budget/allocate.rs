@@ -405,8 +405,9 @@ impl Allocator {
     /// The first round's pivots come from the last call's level when there is one (a bracket
     /// of twice the level's last move either side, at least 1/64 and at most 1/8 of it):
     /// if the root lies inside, that pass already settles every region without a
-    /// breakpoint in the bracket; if not, every region with a share stays open, and the
-    /// three pivots still narrow the bracket (the pass keeps both lists). In the plugin
+    /// breakpoint in the bracket; if not, the three pivots still narrow the bracket, and a
+    /// second pass settles every region against that one (a miss costs about one pass more
+    /// than no guess). For α ≥ 1 the guessed round runs in the validation pass. In the plugin
     /// bench the guess holds in 110 of 116 frames, and then about 3 % of the regions with a
     /// share stay open after the first round instead of all of them.
     /// Once no breakpoint is left inside the bracket, `g`'s offset and slope there are
