@@ -124,6 +124,16 @@ fn bench_projected_area(c: &mut Criterion) {
                 sum
             })
         });
+        // The same boxes through the four-lane batch (the plugin's path).
+        let mut areas = vec![0.0; BOXES];
+        group.bench_function(format!("{name}/batch"), |b| {
+            b.iter(|| {
+                let (camera, boxes) = &scenes[k % scenes.len()];
+                k += 1;
+                camera.projected_areas(black_box(boxes), &mut areas);
+                areas.iter().sum::<f32>()
+            })
+        });
     }
     // Building the camera once per frame.
     let (view, projection) = cameras(&mut rng)[0];

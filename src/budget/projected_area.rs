@@ -2,7 +2,8 @@
 
 use super::{BudgetError, Obb};
 use glam::{
-    Affine3A, DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec3A, Vec3Swizzles, Vec4, Vec4Swizzles,
+    Affine3A, BVec4A, DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3, Vec3A, Vec3Swizzles, Vec4,
+    Vec4Swizzles,
 };
 
 /// The face planes, one bit each, in the order of the [`silhouette`] code: bit `2k` is set
@@ -440,6 +441,56 @@ impl ProjectedAreaCamera {
         self.eye
     }
 
+    /// [`projected_area`](Self::projected_area) of every box in `obbs`, into `out` (one area
+    /// per box, in order), about three times faster per box for boxes in view. Four boxes at
+    /// a time go through the common case (wholly off-screen, or wholly in view and not thin)
+    /// on the four lanes of a SIMD vector; the others go through `projected_area` one by
+    /// one. The common case is measured by faces, not by the outline, so its areas can differ
+    /// from `projected_area`'s in the last bits (both are within about 1e-6 of the exact
+    /// area; the tests hold them to 1e-5).
+    ///
+    /// ```
+    /// use bevy_aslod::budget::{Obb, ProjectedAreaCamera};
+    /// use glam::{Mat3, Mat4, Vec2, Vec3};
+    ///
+    /// let view = Mat4::look_at_rh(Vec3::new(0.0, 2.0, 10.0), Vec3::ZERO, Vec3::Y);
+    /// let projection = Mat4::perspective_infinite_reverse_rh(1.0, 16.0 / 9.0, 0.1);
+    /// let camera = ProjectedAreaCamera::new(view, projection, Vec2::new(1920.0, 1080.0)).unwrap();
+    /// let boxes: Vec<Obb> = (0..7)
+    ///     .map(|i| Obb::new(Vec3::new(i as f32 - 3.0, 0.0, -2.0 * i as f32), Mat3::IDENTITY, Vec3::splat(0.5)))
+    ///     .collect();
+    /// let mut areas = vec![0.0; boxes.len()];
+    /// camera.projected_areas(&boxes, &mut areas);
+    /// for (obb, &area) in boxes.iter().zip(&areas) {
+    ///     let single = camera.projected_area(obb);
+    ///     assert!((area - single).abs() <= 1e-5 * single);
+    /// }
+    /// ```
+    ///
+    /// # Panics
+    /// Panics when `out` is shorter than `obbs`.
+    pub fn projected_areas(&self, obbs: &[Obb], out: &mut [f32]) {
+        assert!(
+            out.len() >= obbs.len(),
+            "{} boxes but room for {} areas",
+            obbs.len(),
+            out.len()
+        );
+        let lanes = Lanes::new(self);
+        for (boxes, out) in obbs.chunks(4).zip(out.chunks_mut(4)) {
+            // A short last chunk repeats its first box in the spare lanes.
+            let quad = std::array::from_fn(|k| boxes.get(k).unwrap_or(&boxes[0]));
+            let (areas, done) = lanes.areas(quad);
+            for (k, (slot, obb)) in out.iter_mut().zip(boxes).enumerate() {
+                *slot = if (done >> k) & 1 == 1 {
+                    areas[k]
+                } else {
+                    self.projected_area(obb)
+                };
+            }
+        }
+    }
+
     /// The area in pixels² that `obb` covers on the viewport: clipped to the near plane and to
     /// the viewport, `0` for a box wholly behind the camera or off-screen. A box the eye is
     /// inside covers the whole viewport (when it reaches past the near plane).
@@ -580,6 +631,171 @@ impl ProjectedAreaCamera {
         polygon.clip_to_viewport(0);
         polygon.area()
     }
+}
+
+/// A camera's constants, each splat across the four lanes of a [`Vec4`], for measuring four
+/// boxes at once (one per lane): the common case of [`ProjectedAreaCamera::projected_area`].
+struct Lanes {
+    /// Rows x, y and w of `clip_from_world`'s upper 3×4 block: `m[row][column]`.
+    m: [[Vec4; 3]; 3],
+    /// `origin_clip`'s x, y and w.
+    origin_clip: [Vec4; 3],
+    origin: [Vec4; 3],
+    near: [Vec4; 4],
+    ndc_to_pixels: Vec4,
+}
+
+/// A 3-vector per lane.
+type Lane3 = [Vec4; 3];
+
+impl Lanes {
+    #[inline]
+    fn new(camera: &ProjectedAreaCamera) -> Self {
+        let m = camera.clip_from_world;
+        let columns = [m.x_axis, m.y_axis, m.z_axis];
+        let row = |pick: fn(Vec4) -> f32| columns.map(|c| Vec4::splat(pick(c)));
+        let o = camera.origin_clip;
+        Self {
+            m: [row(|c| c.x), row(|c| c.y), row(|c| c.w)],
+            origin_clip: [o.x, o.y, o.w].map(Vec4::splat),
+            origin: camera.origin.to_array().map(Vec4::splat),
+            near: camera.near.to_array().map(Vec4::splat),
+            ndc_to_pixels: Vec4::splat(camera.ndc_to_pixels),
+        }
+    }
+
+    /// Clip x, y and w of a direction (w = 0) given per lane.
+    #[inline(always)]
+    fn clip(&self, v: &Lane3) -> Lane3 {
+        self.m
+            .map(|row| row[0] * v[0] + row[1] * v[1] + row[2] * v[2])
+    }
+
+    /// The areas of four boxes in pixels², and a bit per lane set where that area is final:
+    /// the box is wholly behind the near plane or outside a side of the view (area 0), or
+    /// wholly in view and measured well in `f32`. The other lanes' areas are unspecified:
+    /// those boxes need [`ProjectedAreaCamera::projected_area`].
+    ///
+    /// No silhouette here: the outline of a convex body in front of the eye is covered
+    /// twice by the projections of its six faces (once by the faces turned to the eye, once
+    /// by those turned away), so the area is half the sum of the faces' unsigned projected
+    /// areas, whichever are which. A projected face is a quadrilateral, whose area is half the
+    /// cross product of its diagonals. The corners are measured relative to the projection of
+    /// the box's centre, as in [`outline_area`], and the same two precision checks apply.
+    #[inline(always)]
+    fn areas(&self, boxes: [&Obb; 4]) -> (Vec4, u32) {
+        let lanes = |f: fn(&Obb) -> f32| Vec4::from_array(boxes.map(f));
+        let o: Lane3 = [
+            lanes(|b| b.center.x) - self.origin[0],
+            lanes(|b| b.center.y) - self.origin[1],
+            lanes(|b| b.center.z) - self.origin[2],
+        ];
+        let (hx, hy, hz) = (
+            lanes(|b| b.half_extents.x),
+            lanes(|b| b.half_extents.y),
+            lanes(|b| b.half_extents.z),
+        );
+        // The half axes, scaled.
+        let axes: [Lane3; 3] = [
+            [
+                lanes(|b| b.axes.x_axis.x) * hx,
+                lanes(|b| b.axes.x_axis.y) * hx,
+                lanes(|b| b.axes.x_axis.z) * hx,
+            ],
+            [
+                lanes(|b| b.axes.y_axis.x) * hy,
+                lanes(|b| b.axes.y_axis.y) * hy,
+                lanes(|b| b.axes.y_axis.z) * hy,
+            ],
+            [
+                lanes(|b| b.axes.z_axis.x) * hz,
+                lanes(|b| b.axes.z_axis.y) * hz,
+                lanes(|b| b.axes.z_axis.z) * hz,
+            ],
+        ];
+        let clip_o = self.clip(&o);
+        let c: Lane3 = std::array::from_fn(|r| clip_o[r] + self.origin_clip[r]);
+        let a = axes.map(|v| self.clip(&v));
+
+        // A linear function's range over the box is its value at the centre ± Σ |value at
+        // the half axes|: the near plane, and the four side planes w ± x, w ± y.
+        let n = &self.near;
+        let near = |v: &Lane3| n[0] * v[0] + n[1] * v[1] + n[2] * v[2];
+        let near_c = near(&o) + n[3];
+        let near_r = near(&axes[0]).abs() + near(&axes[1]).abs() + near(&axes[2]).abs();
+        let sides = |v: &Lane3| [v[2] + v[0], v[2] - v[0], v[2] + v[1], v[2] - v[1]];
+        let sides_c = sides(&c);
+        let sides_a = a.map(|v| sides(&v));
+        let mut culled = (near_c + near_r).cmple(Vec4::ZERO);
+        let mut inside = (near_c - near_r).cmpge(Vec4::ZERO);
+        for k in 0..4 {
+            let r = sides_a[0][k].abs() + sides_a[1][k].abs() + sides_a[2][k].abs();
+            culled |= (sides_c[k] + r).cmplt(Vec4::ZERO);
+            inside &= (sides_c[k] - r).cmpge(Vec4::ZERO);
+        }
+
+        // Per axis `d`: `d.xy · c.w − c.xy · d.w` (the two products kept for the rounding
+        // check) and `d.w`. Corner `i` (bit k: +a[k]) has numerator Σ ±(that) and w
+        // `c.w + Σ ±d.w`, and projects to numerator / w relative to the centre's projection,
+        // scaled by c.w.
+        let w = c[2];
+        let px = a.map(|d| d[0] * w);
+        let qx = a.map(|d| c[0] * d[2]);
+        let py = a.map(|d| d[1] * w);
+        let qy = a.map(|d| c[1] * d[2]);
+        let x: [Vec4; 3] = std::array::from_fn(|k| px[k] - qx[k]);
+        let y: [Vec4; 3] = std::array::from_fn(|k| py[k] - qy[k]);
+        let signed = |v: &[Vec4; 3], base: Vec4, i: usize| {
+            let pick = |k: usize| if (i >> k) & 1 == 1 { v[k] } else { -v[k] };
+            base + pick(0) + pick(1) + pick(2)
+        };
+        let corners: [(Vec4, Vec4); 8] = std::array::from_fn(|i| {
+            let inverse = Vec4::ONE / signed(&[a[0][2], a[1][2], a[2][2]], w, i);
+            (
+                signed(&x, Vec4::ZERO, i) * inverse,
+                signed(&y, Vec4::ZERO, i) * inverse,
+            )
+        });
+        // Each face's diagonals: corners (00)→(11) and (10)→(01) in its two free axes.
+        const FACES: [[usize; 4]; 6] = [
+            [0, 6, 2, 4],
+            [1, 7, 3, 5],
+            [0, 5, 1, 4],
+            [2, 7, 3, 6],
+            [0, 3, 1, 2],
+            [4, 7, 5, 6],
+        ];
+        let (mut sum, mut size) = (Vec4::ZERO, Vec4::ZERO);
+        for [p, q, r, t] in FACES {
+            let d1 = (corners[q].0 - corners[p].0, corners[q].1 - corners[p].1);
+            let d2 = (corners[t].0 - corners[r].0, corners[t].1 - corners[r].1);
+            let (u, v) = (d1.0 * d2.1, d1.1 * d2.0);
+            sum += (u - v).abs();
+            size += u.abs() + v.abs();
+        }
+        // Twice the outline's area, in the numerators' units (over c.w²).
+        let twice = sum * 0.5;
+        let ww = w * w;
+        let area = twice * 0.5 / ww * self.ndc_to_pixels;
+        // The same two checks as `outline_area`: products that cancel in the face areas, and
+        // per-axis terms whose rounding moves the area by more than about 1e-5.
+        let rounding = (0..3).fold(Vec4::ZERO, |acc, k| {
+            acc + px[k].abs() + qx[k].abs() + py[k].abs() + qy[k].abs()
+        });
+        let spread = (0..3).fold(Vec4::ZERO, |acc, k| acc + x[k].abs() + y[k].abs());
+        let fine = size.cmple(sum * 16.0)
+            & (rounding * spread).cmple(twice * ww * 8.0)
+            & finite(area)
+            & finite(ww);
+        let done = culled | (inside & fine);
+        (Vec4::select(culled, Vec4::ZERO, area), done.bitmask())
+    }
+}
+
+/// Per lane: finite.
+#[inline(always)]
+fn finite(v: Vec4) -> BVec4A {
+    v.abs().cmplt(Vec4::splat(f32::INFINITY))
 }
 
 /// The NDC area of the outline `outline` (corner numbers, as [`silhouette`] gives them) of

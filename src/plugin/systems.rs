@@ -394,7 +394,7 @@ fn allocate(
     let cameras = &scratch.cameras;
     let full_detail = full_detail.0;
     let fill = |chunk: &mut [AreaJob<'_>]| {
-        let mut local = Vec::with_capacity(cameras.len());
+        let mut scratch = AreaScratch::default();
         for ((instance, transform, priority), offset, out) in chunk {
             instance.input_run = (serial, *offset);
             region_inputs(
@@ -403,7 +403,7 @@ fn allocate(
                 *priority,
                 cameras,
                 full_detail,
-                &mut local,
+                &mut scratch,
                 out,
             );
         }
@@ -458,19 +458,30 @@ type AreaJob<'a> = (
     &'a mut [RegionInput],
 );
 
+/// Buffers [`region_inputs`] reuses from model to model.
+#[derive(Default)]
+struct AreaScratch {
+    /// The cameras moved into the model's space.
+    local: Vec<ProjectedAreaCamera>,
+    /// The largest area of each region over the cameras so far, and one camera's areas.
+    areas: Vec<f32>,
+    one: Vec<f32>,
+}
+
 /// One model's [`RegionInput`]s: each region's box, its largest projected area over the
 /// cameras (skipped without LOD, which does not use it), the model's priority. Unskinned
-/// boxes stay in the model's space and the cameras move into it (`local`, scratch); skinned
-/// ones are already in the world.
+/// boxes stay in the model's space and the cameras move into it (four boxes at a time, see
+/// [`ProjectedAreaCamera::projected_areas`]); skinned ones are already in the world.
 fn region_inputs(
     instance: &MultiresInstance,
     transform: &GlobalTransform,
     priority: Option<&LodPriority>,
     cameras: &[ProjectedAreaCamera],
     full_detail: bool,
-    local: &mut Vec<ProjectedAreaCamera>,
+    scratch: &mut AreaScratch,
     out: &mut [RegionInput],
 ) {
+    let AreaScratch { local, areas, one } = scratch;
     let c = priority
         .map(|p| p.0)
         .filter(|c| c.is_finite() && *c > 0.0)
@@ -498,11 +509,23 @@ fn region_inputs(
         } else {
             max_area(cameras, &instance.bounds.transformed(&affine)) <= 0.0
         };
+    let batched = in_model && !culled;
+    if batched {
+        areas.clear();
+        areas.resize(instance.obbs.len(), 0.0);
+        one.resize(instance.obbs.len(), 0.0);
+        for camera in local.iter() {
+            camera.projected_areas(&instance.obbs, one);
+            for (max, &area) in areas.iter_mut().zip(one.iter()) {
+                *max = max.max(area);
+            }
+        }
+    }
     for ((r, region), input) in instance.regions.regions().iter().enumerate().zip(out) {
         let area = if full_detail || culled {
             0.0
-        } else if in_model {
-            max_area(local, &instance.obbs[r])
+        } else if batched {
+            areas[r]
         } else {
             let obb = skinned
                 .and_then(|boxes| boxes.get(r).copied())
