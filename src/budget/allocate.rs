@@ -363,7 +363,14 @@ impl Allocator {
             }
             Some(lambda) => self.round(regions, lambda, available, out, &mut report, executor),
         }
-        self.hysteresis(params.hysteresis, regions, available, out, &mut report);
+        self.hysteresis(
+            params.hysteresis,
+            regions,
+            available,
+            out,
+            &mut report,
+            executor,
+        );
         report.total = out.iter().map(|&p| u64::from(p)).sum();
         Ok(report)
     }
@@ -726,54 +733,79 @@ impl Allocator {
         available: u64,
         out: &mut [u32],
         report: &mut AllocationReport,
+        executor: &impl Executor,
     ) {
         if epsilon == 0 {
             return;
         }
-        self.kept.clear();
-        let mut total: u64 = 0;
-        for (i, (r, p)) in regions.iter().zip(out.iter_mut()).enumerate() {
-            let keep = r.weight > 0.0
-                && r.current != *p
-                && r.current.abs_diff(*p) <= epsilon
-                && (r.min..=r.max).contains(&r.current);
-            if keep {
-                self.kept.push((*p, i as u32));
-                *p = r.current;
-                report.kept += 1;
-            }
-            total += u64::from(*p);
+        // Which regions keep their count, by chunks. Only those kept above their target can
+        // give triangles back: each chunk lists them (target, index) at the front of its part
+        // of `kept`, and the lists are packed in order. Every slot is written before it is
+        // read, so the buffer is only ever grown.
+        let n = regions.len();
+        if self.kept.len() < n {
+            self.kept.resize(n, (0, 0));
         }
+        let mut jobs: Vec<_> = regions
+            .chunks(CHUNK)
+            .zip(out.chunks_mut(CHUNK))
+            .zip(self.kept.chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(c, ((regions, out), above))| (c * CHUNK, regions, out, above, [0; 3]))
+            .collect();
+        executor.for_each(&mut jobs, &|(
+            start,
+            regions,
+            out,
+            above,
+            [listed, kept, total],
+        )| {
+            for (i, (r, p)) in regions.iter().zip(out.iter_mut()).enumerate() {
+                let keep = (r.weight > 0.0)
+                    & (r.current != *p)
+                    & (r.current.abs_diff(*p) <= epsilon)
+                    & (r.min <= r.current)
+                    & (r.current <= r.max);
+                above[*listed as usize] = (*p, (*start + i) as u32);
+                *listed += u64::from(keep & (r.current > *p));
+                *kept += u64::from(keep);
+                *p = if keep { r.current } else { *p };
+                *total += u64::from(*p);
+            }
+        });
+        let parts: Vec<[u64; 3]> = jobs.into_iter().map(|job| job.4).collect();
+        let listed = pack_chunks(&mut self.kept, parts.iter().map(|p| p[0] as usize));
+        report.kept += parts.iter().map(|p| p[1] as usize).sum::<usize>();
+        let mut total: u64 = parts.iter().map(|p| p[2]).sum();
         if total <= available {
             return;
         }
-        // Most expensive first (current − target, descending), lower index among equals. Only
-        // regions kept above their target can give triangles back, at a cost of 1 to ε: for a
-        // small ε a counting sort by cost, stable (`kept` is in index order), else a sort.
-        self.kept.retain(|&(target, i)| out[i as usize] > target);
+        // Most expensive first (current − target, descending), lower index among equals, at
+        // a cost of 1 to ε: for a small ε a counting sort by cost, stable (`kept` is in index
+        // order), else a sort.
+        let kept = &mut self.kept[..listed];
         let cost = |&(target, i): &(u32, u32)| out[i as usize] - target;
         let order: &[(u32, u32)] = if epsilon <= 4096 {
             let top = epsilon as usize;
             self.runs.clear();
             self.runs.resize(top + 1, 0);
-            for k in &self.kept {
+            for k in kept.iter() {
                 self.runs[top - cost(k) as usize + 1] += 1;
             }
             for c in 1..self.runs.len() {
                 self.runs[c] += self.runs[c - 1];
             }
             self.released.clear();
-            self.released.resize(self.kept.len(), (0, 0));
-            for k in &self.kept {
+            self.released.resize(kept.len(), (0, 0));
+            for k in kept.iter() {
                 let slot = &mut self.runs[top - cost(k) as usize];
                 self.released[*slot as usize] = *k;
                 *slot += 1;
             }
             &self.released
         } else {
-            self.kept
-                .sort_unstable_by_key(|k| (std::cmp::Reverse(cost(k)), k.1));
-            &self.kept
+            kept.sort_unstable_by_key(|k| (std::cmp::Reverse(cost(k)), k.1));
+            kept
         };
         for &(target, i) in order {
             if total <= available {
@@ -1393,7 +1425,12 @@ mod tests {
         let mut released = 0;
         for epsilon in [1u32, 3, 8, 100, 4096, 4097, 9000] {
             for _ in 0..20 {
-                let n = 50 + next(400) as usize;
+                // Some of them over several chunks (the keep pass runs per chunk).
+                let n = if next(4) == 0 {
+                    CHUNK + next(3 * CHUNK as u64) as usize
+                } else {
+                    50 + next(400) as usize
+                };
                 let mut regions: Vec<RegionInput> = (0..n)
                     .map(|_| region((1 + next(1000)) as f32, next(5) as u32, 20_000))
                     .collect();
