@@ -840,6 +840,29 @@ fn batched_areas_match_brute_force() {
     assert!(worst_relative <= 1e-5, "{worst_relative}");
 }
 
+/// `may_see` is false only for boxes with no area, and true for every box with some.
+#[test]
+fn may_see_is_false_only_for_boxes_out_of_view() {
+    let mut rng = Rng(57);
+    let mut unseen = 0;
+    for _ in 0..50_000 {
+        let (scene, near) = random_scene(&mut rng);
+        let camera = scene.camera();
+        let obb = random_box(&mut rng, &scene, near);
+        let area = camera.projected_area(&obb);
+        if camera.may_see(&obb) {
+            continue;
+        }
+        unseen += 1;
+        assert_eq!(
+            area, 0.0,
+            "{obb:?} is out of view but has area {area}\n{scene:?}"
+        );
+        assert_eq!(reference_area(&scene, &obb), 0.0, "{obb:?}\n{scene:?}");
+    }
+    assert!(unseen > 5_000, "many boxes are out of view: {unseen}");
+}
+
 /// A box in a model's space, seen through a camera moved into that space, projects as its
 /// eight corners do through the model's transform: rotations, translations, mirrors and
 /// non-uniform scales (which make the box a parallelepiped in the world).

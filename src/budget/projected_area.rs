@@ -499,31 +499,17 @@ impl ProjectedAreaCamera {
     /// unspecified value, possibly NaN, which [`allocate`](super::allocate) rejects.
     #[must_use]
     pub fn projected_area(&self, obb: &Obb) -> f32 {
-        let m = self.clip_from_world;
-        let h = obb.half_extents;
-        let c = m * (obb.center - self.origin).extend(0.0) + self.origin_clip;
-        let a = [
-            m * (obb.axes.x_axis * h.x).extend(0.0),
-            m * (obb.axes.y_axis * h.y).extend(0.0),
-            m * (obb.axes.z_axis * h.z).extend(0.0),
-        ];
-
-        // A linear function's range over the box is its value at the centre ± Σ |value at the
-        // half axes|: near plane first, then the four side planes at once.
-        let n = self.near.xyz();
-        let near_c = n.dot(obb.center - self.origin) + self.near.w;
-        let near_a = [
-            n.dot(obb.axes.x_axis * h.x),
-            n.dot(obb.axes.y_axis * h.y),
-            n.dot(obb.axes.z_axis * h.z),
-        ];
-        let near_r = near_a[0].abs() + near_a[1].abs() + near_a[2].abs();
+        let Reach {
+            c,
+            a,
+            near_c,
+            near_r,
+            sides_c,
+            sides_r,
+        } = self.reach(obb);
         if near_c + near_r <= 0.0 {
             return 0.0; // wholly behind the near plane
         }
-        let sides = |v: Vec4| Vec4::splat(v.w) + Vec4::new(v.x, -v.x, v.y, -v.y);
-        let sides_c = sides(c);
-        let sides_r = sides(a[0]).abs() + sides(a[1]).abs() + sides(a[2]).abs();
         if (sides_c + sides_r).cmplt(Vec4::ZERO).any() {
             return 0.0; // wholly outside one side of the view
         }
@@ -534,7 +520,7 @@ impl ProjectedAreaCamera {
         // The eye in the box's frame, against the faces: the 1999 method.
         let e = self.eye;
         let local = obb.axes.transpose() * (e.xyz() - obb.center * e.w);
-        let bound = h * e.w;
+        let bound = obb.half_extents * e.w;
         const SPREAD: [u8; 8] = [0, 1, 4, 5, 16, 17, 20, 21];
         let below = SPREAD[local.cmplt(-bound).bitmask() as usize];
         let above = SPREAD[local.cmpgt(bound).bitmask() as usize];
@@ -572,6 +558,61 @@ impl ProjectedAreaCamera {
             polygon.area()
         };
         (area * f64::from(self.ndc_to_pixels)) as f32
+    }
+
+    /// Whether some of `obb` may be in view: false when it lies wholly behind the near plane
+    /// or wholly outside a side of the view, where [`projected_area`](Self::projected_area)
+    /// is 0 (the first tests it makes, five dot products). True does not promise a positive
+    /// area: a flat box seen edge-on has none.
+    ///
+    /// ```
+    /// use bevy_aslod::budget::{Obb, ProjectedAreaCamera};
+    /// use glam::{Mat3, Mat4, Vec2, Vec3};
+    ///
+    /// let view = Mat4::look_at_rh(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y);
+    /// let projection = Mat4::perspective_infinite_reverse_rh(1.0, 1.0, 0.1);
+    /// let camera = ProjectedAreaCamera::new(view, projection, Vec2::splat(512.0)).unwrap();
+    /// let ahead = Obb::new(Vec3::ZERO, Mat3::IDENTITY, Vec3::splat(1.0));
+    /// let behind = Obb::new(Vec3::new(0.0, 0.0, 20.0), Mat3::IDENTITY, Vec3::splat(1.0));
+    /// assert!(camera.may_see(&ahead) && !camera.may_see(&behind));
+    /// assert_eq!(camera.projected_area(&behind), 0.0);
+    /// ```
+    #[must_use]
+    pub fn may_see(&self, obb: &Obb) -> bool {
+        let r = self.reach(obb);
+        r.near_c + r.near_r > 0.0 && (r.sides_c + r.sides_r).cmpge(Vec4::ZERO).all()
+    }
+
+    /// The box in clip space (centre and half axes), and the ranges over it of the near
+    /// plane and of the four side planes `w ± x`, `w ± y`: a linear function's range over a
+    /// box is its value at the centre ± Σ |value at the half axes|.
+    #[inline]
+    fn reach(&self, obb: &Obb) -> Reach {
+        let m = self.clip_from_world;
+        let h = obb.half_extents;
+        let c = m * (obb.center - self.origin).extend(0.0) + self.origin_clip;
+        let a = [
+            m * (obb.axes.x_axis * h.x).extend(0.0),
+            m * (obb.axes.y_axis * h.y).extend(0.0),
+            m * (obb.axes.z_axis * h.z).extend(0.0),
+        ];
+        let n = self.near.xyz();
+        let near_c = n.dot(obb.center - self.origin) + self.near.w;
+        let near_a = [
+            n.dot(obb.axes.x_axis * h.x),
+            n.dot(obb.axes.y_axis * h.y),
+            n.dot(obb.axes.z_axis * h.z),
+        ];
+        let near_r = near_a[0].abs() + near_a[1].abs() + near_a[2].abs();
+        let sides = |v: Vec4| Vec4::splat(v.w) + Vec4::new(v.x, -v.x, v.y, -v.y);
+        Reach {
+            c,
+            a,
+            near_c,
+            near_r,
+            sides_c: sides(c),
+            sides_r: sides(a[0]).abs() + sides(a[1]).abs() + sides(a[2]).abs(),
+        }
     }
 
     /// The box's centre and half axes in clip space, in `f64`.
@@ -631,6 +672,19 @@ impl ProjectedAreaCamera {
         polygon.clip_to_viewport(0);
         polygon.area()
     }
+}
+
+/// A box against a camera's view ([`ProjectedAreaCamera::reach`]).
+struct Reach {
+    /// Centre and half axes in clip space.
+    c: Vec4,
+    a: [Vec4; 3],
+    /// The near plane at the centre, and its range over the box.
+    near_c: f32,
+    near_r: f32,
+    /// The side planes `w + x`, `w − x`, `w + y`, `w − y` at the centre, and their ranges.
+    sides_c: Vec4,
+    sides_r: Vec4,
 }
 
 /// A camera's constants, each splat across the four lanes of a [`Vec4`], for measuring four

@@ -488,10 +488,17 @@ fn region_inputs(
         .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
     let affine = transform.affine();
     let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
+    // Every region box lies inside the model's box: when that one is out of every view, so
+    // are they (skinned regions move with their bones, so not for them). The world box
+    // contains the model's box, so this never culls a visible model.
+    let culled = !full_detail && skinned.is_none() && {
+        let bounds = instance.bounds.transformed(&affine);
+        !cameras.iter().any(|cam| cam.may_see(&bounds))
+    };
     // Model space needs an invertible transform; a flattened model (a zero scale on one
     // axis, still drawn as a sheet) keeps world-space boxes.
     local.clear();
-    let in_model = skinned.is_none() && !full_detail && {
+    let in_model = skinned.is_none() && !full_detail && !culled && {
         local.extend(cameras.iter().filter_map(|cam| cam.for_model(&affine)));
         local.len() == cameras.len()
     };
@@ -500,15 +507,6 @@ fn region_inputs(
             .map(|cam| cam.projected_area(obb))
             .fold(0.0f32, f32::max)
     };
-    // Every region box lies inside the model's box: when that one projects to nothing in
-    // every view, so do they (skinned regions move with their bones, so not for them).
-    let culled = !full_detail
-        && skinned.is_none()
-        && if in_model {
-            max_area(local, &instance.bounds) <= 0.0
-        } else {
-            max_area(cameras, &instance.bounds.transformed(&affine)) <= 0.0
-        };
     let batched = in_model && !culled;
     if batched {
         areas.clear();
