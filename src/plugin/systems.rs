@@ -373,19 +373,18 @@ fn allocate(
     // parallel); the runs are filled in parallel on the compute pool.
     scratch.serial += 1;
     let serial = scratch.serial;
-    let items: Vec<_> = models.iter_mut().collect();
+    let items: Vec<_> = models
+        .iter_mut()
+        .map(|item| (item.0.regions.regions().len(), item))
+        .collect();
     let model_count = items.len();
-    let total: usize = items
-        .iter()
-        .map(|(i, _, _)| i.regions.regions().len())
-        .sum();
-    scratch.inputs.clear();
+    let total: usize = items.iter().map(|(n, _)| n).sum();
+    // Every input is written below (each model fills its whole run): no need to clear.
     scratch.inputs.resize(total, RegionInput::default());
     let mut jobs = Vec::with_capacity(items.len());
     let mut rest = scratch.inputs.as_mut_slice();
     let mut offset = 0;
-    for item in items {
-        let n = item.0.regions.regions().len();
+    for (n, item) in items {
         let (run, tail) = rest.split_at_mut(n);
         jobs.push((item, offset, run));
         offset += n;
