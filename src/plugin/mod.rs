@@ -278,6 +278,11 @@ pub struct MultiresInstance {
     staged: Vec<(bool, bevy::mesh::Indices)>,
     /// The regions whose `staged` flag `SelectLod` raised since the last `Upload`, each once.
     ready: Vec<u32>,
+    /// Unskinned models: `SelectLod` left every region at its target and wrote every dirty
+    /// one, so the same targets again leave nothing to do (only `SelectLod` moves the caches).
+    settled: bool,
+    /// The triangles `SelectLod` left the instance showing, all regions together.
+    shown: u64,
 }
 
 impl MultiresInstance {

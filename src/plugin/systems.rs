@@ -215,6 +215,8 @@ fn spawn_regions(
             skin: state,
             staged,
             ready: Vec::new(),
+            settled: false,
+            shown: 0,
             region_entities,
         });
     }
@@ -558,19 +560,32 @@ fn select_lod(
     let totals = par_chunks(&mut instances, |chunk| {
         let mut triangles = 0u64;
         for instance in chunk {
-            let instance = &mut **instance;
             let (serial, start) = instance.input_run;
-            let run = counts.get(start..start + instance.targets.len());
-            if let Some(run) = run.filter(|_| fresh == Some(serial)) {
+            let run = counts
+                .get(start..start + instance.targets.len())
+                .filter(|_| fresh == Some(serial));
+            // The same targets as last frame on a settled model: nothing moves (most models
+            // out of view, whose regions all sit at their minimum, and far ones).
+            let same = run.is_none_or(|run| run == instance.targets.as_slice());
+            if same && instance.settled {
+                triangles += instance.shown;
+                continue;
+            }
+            let instance = &mut **instance;
+            if let Some(run) = run {
                 instance.targets.copy_from_slice(run);
             }
+            let mut shown = 0;
             for (r, &target) in instance.targets.iter().enumerate() {
-                triangles +=
-                    instance
-                        .caches
-                        .set_triangle_count(&instance.regions, r, target as usize)
-                        as u64;
+                shown += instance
+                    .caches
+                    .set_triangle_count(&instance.regions, r, target as usize)
+                    as u64;
             }
+            instance.shown = shown;
+            triangles += shown;
+            // Skinned models write their buffers in `Deform`: never skipped here.
+            instance.settled = instance.skin.is_none();
             if instance.skin.is_none() {
                 // Only the dirty regions' staging slots are touched.
                 for r in 0..instance.staged.len() {
