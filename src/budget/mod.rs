@@ -7,6 +7,8 @@
 //!    [`Obb::transformed`];
 //! 2. [`ProjectedAreaCamera::projected_area`] gives its screen area `Aᵢ` in pixels²
 //!    (Schmalstieg & Tobler's table method, clipped to the near plane and the viewport);
+//!    [`ProjectedAreaCamera::projected_areas`] does many boxes, the common case four at a
+//!    time, and [`ProjectedAreaCamera::may_see`] culls a whole model's box first;
 //! 3. [`allocate`] turns the weights `wᵢ = cᵢ · Aᵢ` (`cᵢ` a user priority) into triangle counts
 //!
 //!    ```text
