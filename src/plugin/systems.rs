@@ -508,8 +508,7 @@ fn region_inputs(
             .map(|cam| cam.projected_area(obb))
             .fold(0.0f32, f32::max)
     };
-    let batched = in_model && !culled;
-    if batched {
+    if in_model {
         areas.clear();
         areas.resize(instance.obbs.len(), 0.0);
         one.resize(instance.obbs.len(), 0.0);
@@ -523,7 +522,7 @@ fn region_inputs(
     for ((r, region), input) in instance.regions.regions().iter().enumerate().zip(out) {
         let area = if full_detail || culled {
             0.0
-        } else if batched {
+        } else if in_model {
             areas[r]
         } else {
             let obb = skinned
