@@ -315,14 +315,7 @@ impl Allocator {
         }
         // With the shares in this pass and a level to guess from, the water level's first
         // round runs in it too: one pass over the regions fewer.
-        let guess = self.last_level.filter(|_| fused).map(guessed_bracket);
-        let first = guess.map(|(a, level, b)| FirstRound {
-            pivots: Pivots {
-                values: [a, level, b],
-                count: 3,
-            },
-            bracket: (a, b),
-        });
+        let first = self.last_level.filter(|_| fused).map(FirstRound::around);
         let (totals, parts) = scan(
             params,
             regions,
@@ -440,14 +433,8 @@ impl Allocator {
         let (round, pass) = match first {
             Some(done) => done,
             None => {
-                let round = match self.last_level.map(guessed_bracket) {
-                    Some((a, level, b)) => FirstRound {
-                        pivots: Pivots {
-                            values: [a, level, b],
-                            count: 3,
-                        },
-                        bracket: (a, b),
-                    },
+                let round = match self.last_level {
+                    Some(last) => FirstRound::around(last),
                     None => FirstRound {
                         pivots: self.sampled_pivots(regions, 0.0, f64::INFINITY),
                         bracket: (f64::NEG_INFINITY, f64::INFINITY),
@@ -860,6 +847,21 @@ struct FirstRound {
     bracket: (f64, f64),
 }
 
+impl FirstRound {
+    /// The round guessed from the last level and its last move ([`guessed_bracket`]): that
+    /// level and the bracket's ends as pivots.
+    fn around(last: (f64, f64)) -> Self {
+        let (a, level, b) = guessed_bracket(last);
+        Self {
+            pivots: Pivots {
+                values: [a, level, b],
+                count: 3,
+            },
+            bracket: (a, b),
+        }
+    }
+}
+
 /// What the water level's first round learns from one chunk of regions.
 #[derive(Clone, Copy, Debug, Default)]
 struct Gathered {
@@ -1136,7 +1138,8 @@ struct Totals {
 /// The checks listed on [`allocate`] (the first invalid region in order is the one named),
 /// and the totals the allocation starts from; with `shares`, the shares for α ≥ 1 too, and
 /// with `first` also the water level's first round over them (its open regions into the
-/// given buffer, by chunks; [`Allocator::combine`] packs them).
+/// given buffer, by chunks, and each chunk's part, which [`Allocator::combine`] packs; the
+/// parts are empty without `first`).
 fn scan(
     params: &AllocationParams,
     regions: &[RegionInput],
@@ -1179,14 +1182,12 @@ fn scan(
         });
     });
     let mut all = Totals::default();
-    let mut parts = Vec::with_capacity(if round.is_some() { jobs.len() } else { 0 });
+    let mut parts = Vec::with_capacity(jobs.len());
     for (_, _, _, _, result) in jobs {
         let (totals, gathered) = result?;
         all.min_total += totals.min_total;
         all.max_weight = all.max_weight.max(totals.max_weight);
-        if round.is_some() {
-            parts.push(gathered);
-        }
+        parts.push(gathered);
     }
     Ok((all, parts))
 }
@@ -1237,21 +1238,25 @@ mod tests {
         }
     }
 
-    #[test]
-    fn any_executor_gives_the_sequential_result() {
-        // Several chunks, a partial last one, weightless and pinned regions among them.
-        let mut seed = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
+    /// A xorshift sequence from `seed`, for the randomized tests.
+    fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
+        move || {
             seed ^= seed << 13;
             seed ^= seed >> 7;
             seed ^= seed << 17;
             seed
-        };
+        }
+    }
+
+    #[test]
+    fn any_executor_gives_the_sequential_result() {
+        // Several chunks, a partial last one, weightless and pinned regions among them.
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
         let regions: Vec<RegionInput> = (0..3 * CHUNK + 517)
             .map(|_| {
                 let min = (next() % 40) as u32;
-                let max = min + (next() % 400) as u32 * u32::from(next() % 13 != 0);
-                let weight = if next() % 7 == 0 {
+                let max = min + (next() % 400) as u32 * u32::from(!next().is_multiple_of(13));
+                let weight = if next().is_multiple_of(7) {
                     0.0
                 } else {
                     (next() % 1_000_000) as f32 * 0.37
@@ -1351,13 +1356,8 @@ mod tests {
         // region's breakpoint max/s: the search can end with that breakpoint as either end
         // of its bracket, depending on the path (the guess), and the two pieces' sums round
         // differently. (Found by review with a differential test.)
-        let mut seed = 0x1234_5678_9ABC_DEF1u64;
-        let mut next = move |n: u64| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed % n
-        };
+        let mut rng = xorshift(0x1234_5678_9ABC_DEF1);
+        let mut next = move |n: u64| rng() % n;
         let mut checked = 0;
         for _ in 0..3000 {
             let n = 1 + next(6000) as usize;
@@ -1497,13 +1497,8 @@ mod tests {
     /// index) through either path: the counting sort for ε ≤ 4096 and the sort above.
     #[test]
     fn hysteresis_release_order_is_the_same_on_both_paths() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move |n: u64| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed % n
-        };
+        let mut rng = xorshift(0x2545_f491_4f6c_dd1d);
+        let mut next = move |n: u64| rng() % n;
         let mut released = 0;
         for epsilon in [1u32, 3, 8, 100, 4096, 4097, 9000] {
             for _ in 0..20 {

@@ -810,17 +810,8 @@ impl Lanes {
                 signed(&y, Vec4::ZERO, i) * inverse,
             )
         });
-        // Each face's diagonals: corners (00)→(11) and (10)→(01) in its two free axes.
-        const FACES: [[usize; 4]; 6] = [
-            [0, 6, 2, 4],
-            [1, 7, 3, 5],
-            [0, 5, 1, 4],
-            [2, 7, 3, 6],
-            [0, 3, 1, 2],
-            [4, 7, 5, 6],
-        ];
         let (mut sum, mut size) = (Vec4::ZERO, Vec4::ZERO);
-        for [p, q, r, t] in FACES {
+        for [p, q, r, t] in FACE_DIAGONALS {
             let d1 = (corners[q].0 - corners[p].0, corners[q].1 - corners[p].1);
             let d2 = (corners[t].0 - corners[r].0, corners[t].1 - corners[r].1);
             let (u, v) = (d1.0 * d2.1, d1.1 * d2.0);
@@ -845,6 +836,20 @@ impl Lanes {
         (Vec4::select(culled, Vec4::ZERO, area), done.bitmask())
     }
 }
+
+/// Each face's two diagonals as corner pairs `[p, q, r, t]` (`p`→`q` and `r`→`t`): the
+/// opposite corners of its [`face_loop`], faces in the order −x, +x, −y, +y, −z, +z. (Which
+/// way a diagonal runs only flips the sign of the face's cross product.)
+const FACE_DIAGONALS: [[usize; 4]; 6] = {
+    let mut out = [[0; 4]; 6];
+    let mut face = 0;
+    while face < 6 {
+        let l = face_loop(face / 2, face % 2 == 1);
+        out[face] = [l[0] as usize, l[2] as usize, l[1] as usize, l[3] as usize];
+        face += 1;
+    }
+    out
+};
 
 /// Per lane: finite.
 #[inline(always)]
