@@ -131,7 +131,8 @@ struct Builder<'a> {
     /// than one fan, so nothing re-ranked it then).
     full_rank_due: Vec<bool>,
     /// Per position: a lower bound on the [`level`](Builder::level)led costs of its other
-    /// candidates (exact when ranked in full).
+    /// candidates (exact when ranked in full, but for candidates that could not win, which
+    /// [`choose`](Builder::choose) prices by their quadric error alone).
     runner_up: Vec<f64>,
     collapses: Vec<Collapse>,
     rewrites: Vec<Rewrite>,
@@ -252,6 +253,9 @@ struct Scratch {
     /// `mark[p] == stamp` marks position `p` in the current set, without clearing.
     mark: Vec<u32>,
     stamp: u32,
+    /// The far edge of each triangle around the position being ranked, in winding order:
+    /// its two positions and their points (see [`Builder::local_error`]).
+    fan: Vec<(u32, u32, DVec3, DVec3)>,
 }
 
 impl Scratch {
@@ -758,7 +762,8 @@ impl<'a> Builder<'a> {
     /// The collapse [`rank`](Self::rank) queues for `u`: `(cost, target)`, or `None`.
     ///
     /// Also returns the lowest [`level`](Self::level)led cost among the other candidates
-    /// (`f64::INFINITY` when there is none), which [`rerank`](Self::rerank) uses.
+    /// (`f64::INFINITY` when there is none), which [`rerank`](Self::rerank) uses; a
+    /// candidate that could not win counts with its quadric error alone, a lower bound.
     fn choose(&mut self, u: u32, validate: bool, ring: Option<&[u32]>) -> Option<(f64, u32, f64)> {
         // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
         // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
@@ -780,16 +785,46 @@ impl<'a> Builder<'a> {
         }
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
+        let mut fan = std::mem::take(&mut self.scratch.fan);
+        fan.clear();
+        if self.local_weight > 0.0 {
+            fan.extend(self.adj[u as usize].iter().map(|&t| {
+                let (_, a, b) =
+                    others(self.tris[t as usize], &self.pos, u).expect("adjacency is consistent");
+                (a, b, self.points[a as usize], self.points[b as usize])
+            }));
+        }
         let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
         for &w in &nu {
             if front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None) {
                 continue;
             }
-            if let Some(e) = self.candidate_cost(u, w) {
+            if let Some(e) = self.quadric_cost(u, w) {
                 candidates.push((e, w));
             }
         }
+        if self.local_weight > 0.0 {
+            // Cheapest quadric error first. The local error only adds, so once a candidate's
+            // quadric error alone levels above the best cost so far, it and every later one
+            // cannot win: they keep that as a lower bound (all a runner-up needs).
+            candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            let mut best = f64::INFINITY;
+            for c in &mut candidates {
+                let bound = settle(c.0);
+                if !validate && self.level(bound) > best {
+                    c.0 = bound;
+                } else {
+                    c.0 = settle(c.0 + self.local_weight * self.local_error(u, c.1, &fan));
+                    best = best.min(self.level(c.0));
+                }
+            }
+        } else {
+            for c in &mut candidates {
+                c.0 = settle(c.0);
+            }
+        }
         self.scratch.neighbors = nu;
+        self.scratch.fan = fan;
         let chosen = if validate {
             candidates.sort_unstable_by(|a, b| self.order(*a, *b));
             candidates
@@ -811,10 +846,12 @@ impl<'a> Builder<'a> {
         chosen
     }
 
-    /// The cost of moving `u` onto its neighbour `w`, or `None` when the kinds forbid it
-    /// (the front rule is the caller's).
+    /// The quadric error of moving `u` onto its neighbour `w`, or `None` when the kinds
+    /// forbid it (the front rule is the caller's). A collapse's cost is this plus
+    /// [`local_weight`](BuildOptions::local_weight) times its
+    /// [`local_error`](Self::local_error), [`settle`]d.
     #[inline]
-    fn candidate_cost(&self, u: u32, w: u32) -> Option<f64> {
+    fn quadric_cost(&self, u: u32, w: u32) -> Option<f64> {
         if self.kind[w as usize] == Kind::Pinned
             || (self.kind[u as usize] == Kind::Border && !self.is_border_edge(u, w))
         {
@@ -823,29 +860,23 @@ impl<'a> Builder<'a> {
         // The error of moving u onto w, measured against u's planes (everything already
         // merged into u): meshoptimizer's choice, which beat the merged quadric
         // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
-        let p = self.points[w as usize];
-        let mut cost = self.quadrics[u as usize].error(p);
-        if self.local_weight > 0.0 {
-            cost += self.local_weight * self.local_error(u, w);
-        }
-        Some(settle(cost))
+        Some(self.quadrics[u as usize].error(self.points[w as usize]))
     }
 
     /// The local error of moving `u` onto `w`: the largest squared distance from `u` to the
     /// plane of a triangle of its fan once moved (the triangles on the edge `u`-`w` go). It
     /// is the height of the tetrahedron each moved triangle sweeps, so it also measures how
-    /// far the fan turns; it depends only on `u`'s current triangles.
-    fn local_error(&self, u: u32, w: u32) -> f64 {
+    /// far the fan turns; it depends only on `u`'s current triangles, whose far edges are
+    /// `fan`.
+    #[inline]
+    fn local_error(&self, u: u32, w: u32, fan: &[(u32, u32, DVec3, DVec3)]) -> f64 {
         let pu = self.points[u as usize];
         let pw = self.points[w as usize];
         let mut worst: f64 = 0.0;
-        for &t in &self.adj[u as usize] {
-            let (_, a, b) =
-                others(self.tris[t as usize], &self.pos, u).expect("adjacency is consistent");
+        for &(a, b, pa, pb) in fan {
             if a == w || b == w {
                 continue;
             }
-            let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
             let normal = (pa - pw).cross(pb - pw);
             let area_sq = normal.length_squared();
             if area_sq > 0.0 {
@@ -926,7 +957,9 @@ impl<'a> Builder<'a> {
             self.rank(x, false, None);
             return;
         }
-        let Some(cost) = self.candidate_cost(x, w) else {
+        // Not reached with a local weight: x's fan changed, so it was ranked in full above.
+        debug_assert!(self.local_weight == 0.0);
+        let Some(cost) = self.quadric_cost(x, w).map(settle) else {
             return;
         };
         let current = f64::from_bits(self.heap.key(x));
