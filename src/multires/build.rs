@@ -774,17 +774,6 @@ impl<'a> Builder<'a> {
         {
             return None;
         }
-        let mut nu = std::mem::take(&mut self.scratch.neighbors);
-        if let Some(ring) = ring {
-            nu.clear();
-            nu.extend_from_slice(ring);
-        } else {
-            let mut scratch = std::mem::take(&mut self.scratch);
-            self.neighbors_into(u, &mut nu, &mut scratch);
-            self.scratch = scratch;
-        }
-        let mut candidates = std::mem::take(&mut self.candidates);
-        candidates.clear();
         let mut fan = std::mem::take(&mut self.scratch.fan);
         fan.clear();
         if self.local_weight > 0.0 {
@@ -794,6 +783,28 @@ impl<'a> Builder<'a> {
                 (a, b, self.points[a as usize], self.points[b as usize])
             }));
         }
+        let mut nu = std::mem::take(&mut self.scratch.neighbors);
+        nu.clear();
+        if let Some(ring) = ring {
+            nu.extend_from_slice(ring);
+        } else if self.local_weight > 0.0 {
+            // The fan's far edges hold every neighbour.
+            let stamp = self.scratch.next_stamp();
+            for &(a, b, _, _) in &fan {
+                for q in [a, b] {
+                    if self.scratch.mark[q as usize] != stamp {
+                        self.scratch.mark[q as usize] = stamp;
+                        nu.push(q);
+                    }
+                }
+            }
+        } else {
+            let mut scratch = std::mem::take(&mut self.scratch);
+            self.neighbors_into(u, &mut nu, &mut scratch);
+            self.scratch = scratch;
+        }
+        let mut candidates = std::mem::take(&mut self.candidates);
+        candidates.clear();
         let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
         for &w in &nu {
             if front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None) {
