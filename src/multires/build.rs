@@ -777,11 +777,7 @@ impl<'a> Builder<'a> {
         let mut fan = std::mem::take(&mut self.scratch.fan);
         fan.clear();
         if self.local_weight > 0.0 {
-            fan.extend(self.adj[u as usize].iter().map(|&t| {
-                let (_, a, b) =
-                    others(self.tris[t as usize], &self.pos, u).expect("adjacency is consistent");
-                (a, b, self.points[a as usize], self.points[b as usize])
-            }));
+            self.fan_into(u, &mut fan);
         }
         let mut nu = std::mem::take(&mut self.scratch.neighbors);
         nu.clear();
@@ -872,6 +868,16 @@ impl<'a> Builder<'a> {
         // merged into u): meshoptimizer's choice, which beat the merged quadric
         // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
         Some(self.quadrics[u as usize].error(self.points[w as usize]))
+    }
+
+    /// The far edge of every triangle around `u`, in winding order, into `out` (cleared).
+    fn fan_into(&self, u: u32, out: &mut Vec<(u32, u32, DVec3, DVec3)>) {
+        out.clear();
+        out.extend(self.adj[u as usize].iter().map(|&t| {
+            let (_, a, b) =
+                others(self.tris[t as usize], &self.pos, u).expect("adjacency is consistent");
+            (a, b, self.points[a as usize], self.points[b as usize])
+        }));
     }
 
     /// The local error of moving `u` onto `w`: the largest squared distance from `u` to the
@@ -1275,8 +1281,9 @@ pub(crate) fn build(
 
 #[cfg(test)]
 mod tests {
-    use super::{BuildOptions, build};
+    use super::{BuildOptions, Builder, Scratch, build, settle};
     use crate::mesh::{IndexedMesh, test_grid};
+    use glam::Vec3;
 
     /// The arena adjacency behaves as a `Vec` per position under pushes past its room
     /// (lists move), swap-removes and takes, in a long pseudo-random sequence.
@@ -1548,6 +1555,52 @@ mod tests {
             vec![0, 1, 2, 1, 0, 3, 0, 1, 4, 5, 6, 7, 5, 7, 8],
         );
         build_all(&fin);
+    }
+
+    #[test]
+    fn local_error_is_the_height_of_the_removed_vertex_over_the_moved_fan() {
+        //        0 (apex, z = 1)          seen from above:      2
+        //       /|\                                          / | \
+        //      / | \                                       3 - 0 - 1
+        //  3 -/--+--\- 1  (ring, z = 0)                      \ | /
+        //                                                      4
+        // Moving the apex onto 1 turns its triangles (0,2,3) and (0,3,4) into (1,2,3) and
+        // (1,3,4), both in the plane z = 0: the apex goes 1 away from them, so the local error
+        // is 1 (squared), and the collapse costs the quadric error plus half of that.
+        let positions = vec![Vec3::Z, Vec3::X, Vec3::Y, Vec3::NEG_X, Vec3::NEG_Y];
+        let indices = vec![0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 1];
+        let mesh = IndexedMesh::new(positions, indices);
+        let options = BuildOptions::default();
+        let mut builder = Builder::new(&mesh, &options, None, None);
+        builder.fill_quadrics();
+        let mut fan = Vec::new();
+        builder.fan_into(0, &mut fan);
+        assert_eq!(builder.local_error(0, 1, &fan), 1.0);
+        let quadric = builder.quadrics[0].error(builder.points[1]);
+        let (cost, target, _) = builder.choose(0, false, None).expect("the apex can move");
+        assert_eq!(target, 1, "four equal costs: the lowest index wins");
+        assert_eq!(cost, settle(quadric + 0.5));
+        // Moving 2 onto 1 along the open border removes (0,1,2) and turns (0,2,3) into
+        // (0,1,3), in the plane y = 0, which 2 lies 1 away from: the outline's cut counts.
+        builder.fan_into(2, &mut fan);
+        assert_eq!(builder.local_error(2, 1, &fan), 1.0);
+
+        // A flat grid: no collapse inside it moves a vertex off the plane of its fan.
+        let grid = test_grid(4, |_, _| 0.0);
+        let mut builder = Builder::new(&grid, &options, None, None);
+        builder.fill_quadrics();
+        for u in 0..grid.vertex_count() as u32 {
+            builder.fan_into(u, &mut fan);
+            let mut ring = Vec::new();
+            let mut scratch = Scratch {
+                mark: vec![0; grid.vertex_count()],
+                ..Scratch::default()
+            };
+            builder.neighbors_into(u, &mut ring, &mut scratch);
+            for w in ring {
+                assert_eq!(builder.local_error(u, w, &fan), 0.0, "{u} -> {w}");
+            }
+        }
     }
 
     /// On a flat face every collapse costs exactly 0. Equal costs go to the target that has
