@@ -12,6 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+use glam::{Quat, Vec3};
+
 #[derive(Parser)]
 #[command(name = "aslod", version, about = "Progressive meshes for bevy_aslod")]
 struct Cli {
@@ -44,23 +46,7 @@ enum Command {
         counts: Option<Vec<usize>>,
     },
     /// Compare our progressive mesh with meshoptimizer: build time and error per ratio.
-    Compare {
-        /// Input mesh (.obj, .ply, .gltf, .glb).
-        input: PathBuf,
-        /// Triangle ratios to compare at.
-        #[arg(long, value_delimiter = ',', default_value = "0.5,0.1,0.02")]
-        ratios: Vec<f64>,
-        /// Timing runs per method; the median is reported.
-        #[arg(long, default_value_t = 5)]
-        runs: usize,
-        /// Print JSON instead of a table.
-        #[arg(long)]
-        json: bool,
-        /// Also measure the cost of partitioning: the same mesh cut into these regions
-        /// (`grid:NxM` or `clusters:K`), each region at the same ratio.
-        #[arg(long)]
-        regions: Option<String>,
-    },
+    Compare(CompareArgs),
     /// Print a mesh's counts, its progressive sequence and its memory use.
     Info {
         /// Input mesh (.obj, .ply, .gltf, .glb).
@@ -77,6 +63,33 @@ enum Command {
         #[arg(long)]
         cell_size: Option<f32>,
     },
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// Input mesh (.obj, .ply, .gltf, .glb).
+    input: PathBuf,
+    /// Triangle ratios to compare at.
+    #[arg(long, value_delimiter = ',', default_value = "0.5,0.1,0.02")]
+    ratios: Vec<f64>,
+    /// Timing runs per method; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Also measure the cost of partitioning: the same mesh cut into these regions
+    /// (`grid:NxM` or `clusters:K`), each region at the same ratio.
+    #[arg(long)]
+    regions: Option<String>,
+    /// Also compare on this many copies of the mesh turned by pseudo-random rotations (seeds
+    /// 1 to N), and print the geometric mean of the ratios: which collapse wins a near-tie
+    /// depends on the rounding, so one orientation is one draw.
+    #[arg(long, default_value_t = 0)]
+    rotations: usize,
+    /// Our build's `BuildOptions::local_weight` (default: the crate's default).
+    #[arg(long)]
+    local_weight: Option<f64>,
 }
 
 fn main() -> ExitCode {
@@ -97,13 +110,7 @@ fn main() -> ExitCode {
             output,
             ..
         } => extract(&input, triangles, error, &output),
-        Command::Compare {
-            input,
-            ratios,
-            runs,
-            json,
-            regions,
-        } => compare(&input, &ratios, runs.max(1), json, regions.as_deref()),
+        Command::Compare(args) => compare(&args),
         Command::Info { input } => info(&input),
         Command::Mannequin { output, cell_size } => mannequin(&output, cell_size),
     };
@@ -345,6 +352,100 @@ fn meshopt_simplify(mesh: &IndexedMesh, target_triangles: usize) -> Vec<u32> {
     )
 }
 
+/// Ours against meshopt at one ratio over rotated copies of a mesh.
+struct RotatedRow {
+    ratio: f64,
+    /// Geometric means of ours / meshopt's Hausdorff and RMS distances.
+    hausdorff_ratio: f64,
+    rms_ratio: f64,
+    /// Copies where ours is at most meshopt's.
+    hausdorff_at_most: usize,
+    rms_at_most: usize,
+}
+
+/// A pseudo-random rotation for `seed` (xorshift64: an axis, then an angle).
+fn rotation(seed: u64) -> Quat {
+    let mut x = 0x9E37_79B9_7F4A_7C15u64.wrapping_mul(seed + 1);
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f32 / (1u64 << 53) as f32
+    };
+    let axis = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize_or(Vec3::Y);
+    Quat::from_axis_angle(axis, next() * std::f32::consts::TAU)
+}
+
+/// Ours (built with `options`) against meshopt on `copies` copies of `mesh` turned by
+/// [`rotation`]s 1 to `copies`, per ratio.
+fn compare_rotated(
+    mesh: &IndexedMesh,
+    ratios: &[f64],
+    copies: usize,
+    options: &BuildOptions,
+) -> Result<Vec<RotatedRow>, Box<dyn std::error::Error>> {
+    // ln of each ratio summed, and the copies at most 1, per ratio.
+    let mut sums = vec![(0.0f64, 0.0f64, 0usize, 0usize); ratios.len()];
+    let distance_options = DistanceOptions::default();
+    for seed in 1..=copies as u64 {
+        let turn = rotation(seed);
+        let mut turned = mesh.clone();
+        for p in &mut turned.positions {
+            *p = turn * *p;
+        }
+        if let Some(normals) = &mut turned.normals {
+            for n in normals {
+                *n = turn * *n;
+            }
+        }
+        let pm = ProgressiveMesh::build(&turned, options)?;
+        let mut cache = PolygonCache::new(&pm);
+        let original = MeshRef::new(&turned.positions, &turned.indices);
+        for (sum, &ratio) in sums.iter_mut().zip(ratios) {
+            let target = ((ratio * mesh.triangle_count() as f64).round() as usize).max(1);
+            cache.set_triangle_count(&pm, target);
+            let ours = mesh_distance(
+                original,
+                MeshRef::new(&pm.vertices().positions, cache.indices()),
+                &distance_options,
+            );
+            let simplified = meshopt_simplify(&turned, target);
+            let theirs = mesh_distance(
+                original,
+                MeshRef::new(&turned.positions, &simplified),
+                &distance_options,
+            );
+            let h = quotient(ours.hausdorff, theirs.hausdorff);
+            let r = quotient(ours.rms, theirs.rms);
+            sum.0 += h.ln();
+            sum.1 += r.ln();
+            sum.2 += usize::from(h <= 1.0);
+            sum.3 += usize::from(r <= 1.0);
+        }
+    }
+    Ok(sums
+        .iter()
+        .zip(ratios)
+        .filter(|_| copies > 0)
+        .map(|(&(h, r, hn, rn), &ratio)| RotatedRow {
+            ratio,
+            hausdorff_ratio: (h / copies as f64).exp(),
+            rms_ratio: (r / copies as f64).exp(),
+            hausdorff_at_most: hn,
+            rms_at_most: rn,
+        })
+        .collect())
+}
+
+/// `a / b` for distances: 1 when both are 0.
+fn quotient(a: f32, b: f32) -> f64 {
+    if a == b {
+        1.0
+    } else {
+        f64::from(a) / f64::from(b)
+    }
+}
+
 struct Row {
     ratio: f64,
     target: usize,
@@ -354,21 +455,19 @@ struct Row {
     meshopt: Distance,
 }
 
-fn compare(
-    input: &Path,
-    ratios: &[f64],
-    runs: usize,
-    json: bool,
-    regions_spec: Option<&str>,
-) -> CliResult {
+fn compare(args: &CompareArgs) -> CliResult {
+    let (input, ratios, json) = (args.input.as_path(), args.ratios.as_slice(), args.json);
+    let (runs, regions_spec) = (args.runs.max(1), args.regions.as_deref());
     let mesh = load(input)?;
     let t = mesh.triangle_count();
     let smallest = ratios.iter().copied().fold(1.0f64, f64::min);
     let target_of = |r: f64| ((r * t as f64).round() as usize).max(1);
+    let mut build_options = BuildOptions::default();
+    if let Some(w) = args.local_weight {
+        build_options.local_weight = w;
+    }
 
-    let (ours_ms, pm) = time_ms(runs, || {
-        ProgressiveMesh::build(&mesh, &BuildOptions::default())
-    });
+    let (ours_ms, pm) = time_ms(runs, || ProgressiveMesh::build(&mesh, &build_options));
     let pm = pm?;
     let (meshopt_smallest_ms, _) = time_ms(runs, || meshopt_simplify(&mesh, target_of(smallest)));
     let (meshopt_1pc_ms, _) = time_ms(runs, || meshopt_simplify(&mesh, target_of(0.01)));
@@ -402,11 +501,12 @@ fn compare(
     }
     let source_bytes = indexed_mesh_bytes(&mesh);
     let ours_bytes = pm.memory_bytes();
+    let rotated = compare_rotated(&mesh, ratios, args.rotations, &build_options)?;
 
     // The cost of partitioning: every region at the same ratio, against the whole mesh.
     let mut partitioned = Vec::new();
     if let Some(spec) = regions_spec {
-        let regions = RegionMesh::build(&mesh, &partition(&mesh, spec)?, &BuildOptions::default())?;
+        let regions = RegionMesh::build(&mesh, &partition(&mesh, spec)?, &build_options)?;
         for (row, &ratio) in rows.iter().zip(ratios) {
             let counts: Vec<usize> = regions
                 .regions()
@@ -450,6 +550,16 @@ fn compare(
                     "rms": d.rms,
                     "hausdorff_vs_whole": d.hausdorff / whole.hausdorff,
                     "rms_vs_whole": d.rms / whole.rms,
+                })).collect::<Vec<_>>(),
+            })),
+            "rotated": (args.rotations > 0).then(|| serde_json::json!({
+                "copies": args.rotations,
+                "rows": rotated.iter().map(|r| serde_json::json!({
+                    "ratio": r.ratio,
+                    "hausdorff_ratio_geomean": r.hausdorff_ratio,
+                    "rms_ratio_geomean": r.rms_ratio,
+                    "hausdorff_at_most_meshopt": r.hausdorff_at_most,
+                    "rms_at_most_meshopt": r.rms_at_most,
                 })).collect::<Vec<_>>(),
             })),
             "ratios": rows.iter().map(|r| serde_json::json!({
@@ -530,6 +640,26 @@ fn compare(
                 d.rms,
                 d.hausdorff / whole.hausdorff,
                 d.rms / whole.rms
+            );
+        }
+    }
+    if !rotated.is_empty() {
+        println!(
+            "{} rotated copies: geometric mean of ours / meshopt, and copies at most 1:",
+            args.rotations
+        );
+        println!(
+            "{:>6} | {:>7} {:>7} | {:>7} {:>7}",
+            "ratio", "H ratio", "RMS rat", "H <= 1", "RMS <= 1"
+        );
+        for r in &rotated {
+            println!(
+                "{:>6} | {:>7.3} {:>7.3} | {:>7} {:>7}",
+                r.ratio,
+                r.hausdorff_ratio,
+                r.rms_ratio,
+                format!("{}/{}", r.hausdorff_at_most, args.rotations),
+                format!("{}/{}", r.rms_at_most, args.rotations)
             );
         }
     }
