@@ -811,19 +811,23 @@ impl<'a> Builder<'a> {
             }
         }
         if self.local_weight > 0.0 {
-            // Cheapest quadric error first. The local error only adds, so once a candidate's
-            // quadric error alone levels above the best cost so far, it and every later one
-            // cannot win: they keep that as a lower bound (all a runner-up needs).
-            candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            // The cheapest quadric error first. The local error only adds, so a candidate
+            // whose quadric error alone levels above the best cost so far cannot win: it
+            // keeps that as a lower bound (all a runner-up needs).
+            let first = (0..candidates.len())
+                .min_by(|&i, &j| candidates[i].0.total_cmp(&candidates[j].0))
+                .unwrap_or(0);
             let mut best = f64::INFINITY;
-            for c in &mut candidates {
-                let bound = settle(c.0);
-                if !validate && self.level(bound) > best {
-                    c.0 = bound;
+            for i in (first..candidates.len()).chain(0..first) {
+                let (q, w) = candidates[i];
+                let bound = settle(q);
+                candidates[i].0 = if !validate && self.level(bound) > best {
+                    bound
                 } else {
-                    c.0 = settle(c.0 + self.local_weight * self.local_error(u, c.1, &fan));
-                    best = best.min(self.level(c.0));
-                }
+                    let cost = settle(q + self.local_weight * self.local_error(u, w, &fan));
+                    best = best.min(self.level(cost));
+                    cost
+                };
             }
         } else {
             for c in &mut candidates {
@@ -998,9 +1002,31 @@ impl<'a> Builder<'a> {
             .contains(x)
             .then(|| (self.heap.key(x), self.target[x as usize]));
         let fresh = self.choose(x, false, None);
-        if let Some((_, _, runner_up)) = fresh {
+        if let Some((_, chosen, runner_up)) = fresh {
+            // Against every other candidate's full cost: choose prices those that cannot
+            // win by their quadric error alone, in an order that depends on the ring's.
+            let mut fan = Vec::new();
+            self.fan_into(x, &mut fan);
+            let exact = self
+                .candidates
+                .iter()
+                .filter(|c| c.1 != chosen)
+                .map(|&(_, y)| {
+                    let q = self.quadric_cost(x, y).expect("a candidate is allowed");
+                    let local = if self.local_weight > 0.0 {
+                        self.local_weight * self.local_error(x, y, &fan)
+                    } else {
+                        0.0
+                    };
+                    self.level(settle(q + local))
+                })
+                .fold(f64::INFINITY, f64::min);
             assert!(
-                self.runner_up[x as usize] <= runner_up,
+                runner_up <= exact,
+                "vertex {x}: choose's runner-up is not a bound"
+            );
+            assert!(
+                self.runner_up[x as usize] <= exact,
                 "vertex {x}: the runner-up bound is above the runner-up"
             );
         }
