@@ -9,7 +9,8 @@
 //! 2. build vertex -> triangle adjacency and classify every position (manifold, border,
 //!    complex, pinned);
 //! 3. fill quadrics: face planes, plus edge planes along borders and attribute seams;
-//! 4. rank every position's cheapest valid half-edge collapse in a priority queue;
+//! 4. rank every position's cheapest valid half-edge collapse in a priority queue (its
+//!    quadric error plus its local error, the removed vertex's height over its moved fan);
 //! 5. pop, re-validate, perform, record, and re-rank the one-ring of the surviving vertex;
 //! 6. lay the triangles out in removal order and pack the records.
 
@@ -52,7 +53,9 @@ pub struct BuildOptions {
     /// goes to the planes of the triangles that replace its fan (the worst one), added to the
     /// quadric's mean. The quadric averages over everything merged into the vertex, so a
     /// vertex that absorbed a large flat area lets its curved side move almost for free; the
-    /// local error is not diluted, and keeps the Hausdorff distance down. Default: `0.5`
+    /// local error is not diluted, and keeps the Hausdorff distance down. It also enters the
+    /// error table ([`ProgressiveMesh::level_error`] is the square root of the whole cost,
+    /// relative to the diagonal). Default: `0.5`
     /// (chosen over 0.2-2 on rotated copies of the test meshes against meshoptimizer; see the
     /// README). `0.0` is the plain quadric error; negative or non-finite values count as
     /// `0.0` (with a warning).
