@@ -19,7 +19,7 @@ use super::heap::IndexedHeap;
 use super::quadric::Quadric;
 use super::records::{Layout, Unpacked, error_to_u16};
 use crate::mesh::{IndexedMesh, MeshError, weld_positions};
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 /// Settings of [`ProgressiveMesh::build`].
 #[derive(Clone, Debug, PartialEq)]
@@ -118,7 +118,9 @@ struct Builder<'a> {
     options: &'a BuildOptions,
     /// Attribute vertex -> position id (the smallest vertex index at that position).
     pos: Vec<u32>,
+    /// Positions relative to `centre`, the bounding box's centre.
     points: Vec<DVec3>,
+    centre: DVec3,
     tris: Vec<[u32; 3]>,
     alive: Vec<bool>,
     /// Position id -> incident live triangles.
@@ -155,6 +157,10 @@ struct Builder<'a> {
     candidates: Vec<(f64, u32)>,
     /// The positions of the triangles around the vertex last collapsed, before it was.
     moved_ring: Vec<u32>,
+    /// Per position: the points its representative takes in another region, from which level
+    /// on (see [`Constraints::chains`]); empty for all but the foreign vertices of a region
+    /// whose neighbour is built.
+    band: Vec<Vec<(u32, DVec3)>>,
     /// Scratch: the triangles around the vertex being collapsed.
     adj_u: Vec<u32>,
 }
@@ -327,6 +333,7 @@ impl<'a> Builder<'a> {
             options,
             pos: weld.remap,
             points,
+            centre,
             alive: vec![true; tris.len()],
             live_triangles: tris.len(),
             has_seams: weld.unique < n,
@@ -351,6 +358,7 @@ impl<'a> Builder<'a> {
             },
             candidates: Vec::new(),
             moved_ring: Vec::new(),
+            band: Vec::new(),
             adj_u: Vec::new(),
         };
         builder.classify(pinned);
@@ -366,6 +374,23 @@ impl<'a> Builder<'a> {
             }
         }
         builder
+    }
+
+    /// Takes the chains of other regions' vertices (see [`Constraints::chains`]), per vertex,
+    /// into `band`, per position.
+    fn set_chains(&mut self, chains: &[Vec<(u32, Vec3)>]) {
+        if chains.iter().all(Vec::is_empty) {
+            return;
+        }
+        self.band = vec![Vec::new(); self.points.len()];
+        for (v, chain) in chains.iter().enumerate() {
+            if !chain.is_empty() {
+                self.band[self.pos[v] as usize] = chain
+                    .iter()
+                    .map(|&(level, p)| (level, p.as_dvec3() - self.centre))
+                    .collect();
+            }
+        }
     }
 
     /// Phase 2: manifold, border, complex or pinned, per position.
@@ -735,15 +760,58 @@ impl<'a> Builder<'a> {
             }
             // No flip: the moved triangle must keep facing the same way.
             let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
-            let before = (pa - pu).cross(pb - pu);
-            let after = (pa - pw).cross(pb - pw);
-            let dot = before.dot(after);
-            let lengths = (before.length_squared() * after.length_squared()).sqrt();
-            if dot <= self.options.min_normal_cos * lengths || lengths == 0.0 {
+            if self.turns(pu, pw, pa, pb) {
+                return false;
+            }
+            // Nor wherever another region, built before this one, takes the corners it owns.
+            if !self.band.is_empty() && self.turns_in_band(t, pu, pw, a, b) {
                 return false;
             }
         }
         true
+    }
+
+    /// True when moving the corner at `pu` of triangle `(pu, pa, pb)` to `pw` turns it by more
+    /// than [`BuildOptions::min_normal_cos`] allows, or leaves it without area.
+    #[inline]
+    fn turns(&self, pu: DVec3, pw: DVec3, pa: DVec3, pb: DVec3) -> bool {
+        let before = (pa - pu).cross(pb - pu);
+        let after = (pa - pw).cross(pb - pw);
+        let dot = before.dot(after);
+        let lengths = (before.length_squared() * after.length_squared()).sqrt();
+        dot <= self.options.min_normal_cos * lengths || lengths == 0.0
+    }
+
+    /// [`turns`](Self::turns) at every level of the other region that owns `a` or `b`, with
+    /// their representatives there in their place (both are in one region: a vertex next to
+    /// two others is pinned); and whether the moved triangle `t` then faces away from where
+    /// it faced at full detail (each region checks its own steps, so only this keeps the
+    /// sum of both sides' turns from flipping it). A level where the two have met is
+    /// skipped: that region has removed the triangle.
+    fn turns_in_band(&self, t: u32, pu: DVec3, pw: DVec3, a: u32, b: u32) -> bool {
+        let (chain_a, chain_b) = (&self.band[a as usize], &self.band[b as usize]);
+        if chain_a.is_empty() && chain_b.is_empty() {
+            return false;
+        }
+        let corners = &self.mesh.indices[3 * t as usize..3 * t as usize + 3];
+        let [p0, p1, p2] = [0, 1, 2].map(|k| self.mesh.positions[corners[k] as usize].as_dvec3());
+        let original = (p1 - p0).cross(p2 - p0);
+        let at = |chain: &[(u32, DVec3)], fixed: u32, level: u32| {
+            chain
+                .iter()
+                .take_while(|&&(from, _)| from <= level)
+                .last()
+                .map_or(self.points[fixed as usize], |&(_, p)| p)
+        };
+        chain_a.iter().chain(chain_b).any(|&(level, _)| {
+            let (pa, pb) = (at(chain_a, a, level), at(chain_b, b, level));
+            if (pa - pb).length_squared() == 0.0 || (pa - pu).cross(pb - pu).length_squared() == 0.0
+            {
+                return false;
+            }
+            // (w, a, b) keeps the winding of the original triangle (u's corner first).
+            self.turns(pu, pw, pa, pb) || (pa - pw).cross(pb - pw).dot(original) <= 0.0
+        })
     }
 
     /// Phase 4: queues the cheapest collapse out of `u`. With `validate`, the cheapest one
@@ -1264,14 +1332,27 @@ pub(crate) struct Built {
     pub(crate) moves: Vec<(u32, u32, u32)>,
 }
 
+/// What a region's build adds to a plain one, per vertex of the mesh given to [`build`].
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Constraints<'a> {
+    /// Vertices that never move.
+    pub(crate) pinned: Option<&'a [bool]>,
+    /// Another region's vertices: fronts run along them (see [`Builder::touches_anchor`]).
+    /// `None`: along every pinned vertex.
+    pub(crate) anchors: Option<&'a [bool]>,
+    /// For another region's vertex, the positions its representative takes there as that
+    /// region coarsens: `(level, position)` from level 0 (itself) on, in order. Empty, or
+    /// one entry, when it never moves or its region is not built yet. A collapse that moves a
+    /// triangle with such a corner is checked for flips at every one of them.
+    pub(crate) chains: Option<&'a [Vec<(u32, Vec3)>]>,
+}
+
 /// Runs the whole build. `mesh` must be validated. Triangles from `owned` on are context
-/// (see [`Builder::finish`]). Fronts run along `anchors` (another region's vertices), or
-/// along every pinned vertex when `None` (see [`Builder::touches_anchor`]).
+/// (see [`Builder::finish`]).
 pub(crate) fn build(
     mesh: &IndexedMesh,
     options: &BuildOptions,
-    pinned: Option<&[bool]>,
-    anchors: Option<&[bool]>,
+    constraints: &Constraints,
     owned: usize,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Built, MeshError> {
@@ -1295,7 +1376,10 @@ pub(crate) fn build(
             log::warn!("BuildOptions::{name} = {value} is negative or not finite: 0 is used");
         }
     }
-    let mut builder = Builder::new(mesh, options, pinned, anchors);
+    let mut builder = Builder::new(mesh, options, constraints.pinned, constraints.anchors);
+    if let Some(chains) = constraints.chains {
+        builder.set_chains(chains);
+    }
     builder.run(progress);
     builder
         .finish(owned.min(mesh.triangle_count()))
@@ -1310,7 +1394,7 @@ pub(crate) fn build(
 
 #[cfg(test)]
 mod tests {
-    use super::{BuildOptions, Builder, Scratch, build, settle};
+    use super::{BuildOptions, Builder, Constraints, Scratch, build, settle};
     use crate::mesh::{IndexedMesh, test_grid};
     use glam::Vec3;
 
@@ -1418,8 +1502,7 @@ mod tests {
         build(
             &mesh,
             &BuildOptions::default(),
-            None,
-            None,
+            &Constraints::default(),
             n,
             &mut |_, _| {},
         )
@@ -1437,7 +1520,7 @@ mod tests {
                 border_weight,
                 ..BuildOptions::default()
             };
-            build(&grid, &options, None, None, n, &mut |_, _| {})
+            build(&grid, &options, &Constraints::default(), n, &mut |_, _| {})
                 .unwrap()
                 .moves
         };
@@ -1534,7 +1617,7 @@ mod tests {
         let options = BuildOptions::default();
         let build_all = |mesh: &IndexedMesh| {
             let n = mesh.triangle_count();
-            build(mesh, &options, None, None, n, &mut |_, _| {}).unwrap();
+            build(mesh, &options, &Constraints::default(), n, &mut |_, _| {}).unwrap();
         };
         for name in ["spot.obj", "fandisk.obj", "stanford-bunny.obj"] {
             let (mesh, _) = IndexedMesh::load(dir.join(name)).expect("a test mesh");
@@ -1641,8 +1724,7 @@ mod tests {
         let built = build(
             &mesh,
             &BuildOptions::default(),
-            None,
-            None,
+            &Constraints::default(),
             mesh.triangle_count(),
             &mut |_, _| {},
         )
@@ -1679,8 +1761,7 @@ mod tests {
             let built = build(
                 &mesh,
                 &options,
-                None,
-                None,
+                &Constraints::default(),
                 mesh.triangle_count(),
                 &mut |_, _| {},
             )

@@ -114,7 +114,11 @@ impl ProgressiveMesh {
             });
         }
         let owned = mesh.triangle_count();
-        Ok(build::build(&mesh, options, pinned, None, owned, progress)?.mesh)
+        let constraints = build::Constraints {
+            pinned,
+            ..build::Constraints::default()
+        };
+        Ok(build::build(&mesh, options, &constraints, owned, progress)?.mesh)
     }
 
     /// The vertex table: positions and the other attributes, unchanged from the source. Its

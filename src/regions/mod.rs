@@ -303,14 +303,22 @@ impl RegionMesh {
 
         let cuts = closed_band_cuts(&mesh, &region_of, &weld.remap);
 
-        // Build every region, in parallel where there are cores.
-        let built: Vec<Result<BuiltRegion, RegionError>> = {
-            let work: Vec<usize> = (0..count).collect();
+        // Build the regions in rounds, no two neighbours in one round, each round in
+        // parallel where there are cores. A region sees the chains of its neighbours built in
+        // earlier rounds, and checks its moves of band triangles against every level of
+        // theirs (see `build_region`).
+        let colour = colour_regions(&mesh, &region_of, count);
+        let rounds = colour.iter().max().map_or(0, |&c| c + 1);
+        let mut built: Vec<Option<Region>> = (0..count).map(|_| None).collect();
+        // moves[v] = (step, parent) in v's own region, for the regions built so far.
+        let mut moves = vec![(u32::MAX, u32::MAX); mesh.vertex_count()];
+        for round in 0..rounds {
+            let work: Vec<usize> = (0..count).filter(|&r| colour[r] == round).collect();
             let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-            let chunk = count.div_ceil(threads.max(1)).max(1);
-            let (mesh, region_of, owned, context, cuts) =
-                (&mesh, &region_of, &owned, &context, &cuts);
-            std::thread::scope(|scope| {
+            let chunk = work.len().div_ceil(threads.max(1)).max(1);
+            let (mesh, region_of, owned, context, cuts, moves_so_far) =
+                (&mesh, &region_of, &owned, &context, &cuts, &moves);
+            let results: Vec<Result<BuiltRegion, RegionError>> = std::thread::scope(|scope| {
                 let handles: Vec<_> = work
                     .chunks(chunk)
                     .map(|regions| {
@@ -325,6 +333,7 @@ impl RegionMesh {
                                         &owned[r],
                                         &context[r],
                                         cuts,
+                                        moves_so_far,
                                         options,
                                     )
                                 })
@@ -336,18 +345,20 @@ impl RegionMesh {
                     .into_iter()
                     .flat_map(|h| h.join().expect("region build does not panic"))
                     .collect()
-            })
-        };
-        let mut regions = Vec::with_capacity(count);
-        // moves[v] = (step, parent) in v's own region.
-        let mut moves = vec![(u32::MAX, u32::MAX); mesh.vertex_count()];
-        for result in built {
-            let (region, region_moves) = result?;
-            for (step, old, new) in region_moves {
-                moves[region.global[old as usize] as usize] = (step, region.global[new as usize]);
+            });
+            for (&r, result) in work.iter().zip(results) {
+                let (region, region_moves) = result?;
+                for (step, old, new) in region_moves {
+                    moves[region.global[old as usize] as usize] =
+                        (step, region.global[new as usize]);
+                }
+                built[r] = Some(region);
             }
-            regions.push(region);
         }
+        let mut regions: Vec<Region> = built
+            .into_iter()
+            .map(|r| r.expect("every region has a round"))
+            .collect();
         let mut events = vec![Vec::new(); regions.len()];
         for (r, region) in regions.iter_mut().enumerate() {
             link_border(region, r as u32, &region_of, &moves, &mesh, &mut events);
@@ -417,8 +428,41 @@ impl RegionMesh {
 /// A built region, and its vertex moves `(step, old, new)` in local indices.
 type BuiltRegion = (Region, Vec<(u32, u32, u32)>);
 
+/// A greedy colouring of the regions' adjacency (two regions are adjacent when a triangle has
+/// corners in both): no two neighbours share a colour.
+fn colour_regions(mesh: &IndexedMesh, region_of: &[u32], count: usize) -> Vec<u32> {
+    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); count];
+    for t in mesh.indices.chunks_exact(3) {
+        for &a in t {
+            for &b in t {
+                let (ra, rb) = (region_of[a as usize], region_of[b as usize]);
+                if ra != rb {
+                    neighbours[ra as usize].push(rb);
+                }
+            }
+        }
+    }
+    let mut colour = vec![u32::MAX; count];
+    let mut taken = Vec::new();
+    for r in 0..count {
+        taken.clear();
+        taken.extend(
+            neighbours[r]
+                .iter()
+                .map(|&n| colour[n as usize])
+                .filter(|&c| c != u32::MAX),
+        );
+        colour[r] = (0..).find(|c| !taken.contains(c)).expect("a free colour");
+    }
+    colour
+}
+
 /// Builds one region's sequence over its owned triangles, with context triangles around its
 /// vertices, and returns the vertex moves in local indices.
+/// `moves` holds the vertex moves `(step, parent)` of the regions built before this one (the
+/// rest are `u32::MAX`): the band triangles this region moves are checked against every
+/// position their foreign corners take in those regions, not only at full detail.
+#[allow(clippy::too_many_arguments)]
 fn build_region(
     mesh: &IndexedMesh,
     region_of: &[u32],
@@ -426,6 +470,7 @@ fn build_region(
     owned: &[u32],
     context: &[u32],
     cuts: &[bool],
+    moves: &[(u32, u32)],
     options: &BuildOptions,
 ) -> Result<BuiltRegion, RegionError> {
     // Local vertex table: own vertices first (by global id), then foreign ones.
@@ -502,11 +547,34 @@ fn build_region(
     // Fronts run along the foreign vertices only, not along the junctions (see
     // `Builder::touches_anchor`).
     let foreign: Vec<bool> = (0..global.len()).map(|i| i >= own_vertices).collect();
+    // Each foreign vertex's representatives in its (built) region: from which level on each
+    // stands in for it, and where.
+    let chains: Vec<Vec<(u32, Vec3)>> = global
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let mut chain = Vec::new();
+            if i >= own_vertices {
+                chain.push((0, mesh.positions[v as usize]));
+                let mut at = v;
+                while let (step, parent) = moves[at as usize]
+                    && step != u32::MAX
+                {
+                    chain.push((step + 1, mesh.positions[parent as usize]));
+                    at = parent;
+                }
+            }
+            chain
+        })
+        .collect();
     let built = build::build(
         &sub,
         options,
-        Some(&pinned),
-        Some(&foreign),
+        &build::Constraints {
+            pinned: Some(&pinned),
+            anchors: Some(&foreign),
+            chains: Some(&chains),
+        },
         owned.len(),
         &mut |_, _| {},
     )?;
