@@ -760,7 +760,7 @@ impl<'a> Builder<'a> {
             }
             // No flip: the moved triangle must keep facing the same way.
             let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
-            if self.turns(pu, pw, pa, pb) {
+            if self.turns(pu, pw, pa, pb) || self.faces_away(t, pw, pa, pb) {
                 return false;
             }
             // Nor wherever another region, built before this one, takes the corners it owns.
@@ -782,6 +782,16 @@ impl<'a> Builder<'a> {
         dot <= self.options.min_normal_cos * lengths || lengths == 0.0
     }
 
+    /// True when triangle `t`, its corners moved to `pw`, `pa` and `pb` (in its winding),
+    /// faces away from its full-detail side: a series of collapses that each turn it by
+    /// less than [`turns`](Self::turns) allows can still turn it over.
+    #[inline]
+    fn faces_away(&self, t: u32, pw: DVec3, pa: DVec3, pb: DVec3) -> bool {
+        let corners = &self.mesh.indices[3 * t as usize..3 * t as usize + 3];
+        let [p0, p1, p2] = [0, 1, 2].map(|k| self.mesh.positions[corners[k] as usize].as_dvec3());
+        (pa - pw).cross(pb - pw).dot((p1 - p0).cross(p2 - p0)) <= 0.0
+    }
+
     /// [`turns`](Self::turns) at every level of the other region that owns `a` or `b`, with
     /// their representatives there in their place (both are in one region: a vertex next to
     /// two others is pinned); and whether the moved triangle `t` then faces away from where
@@ -793,9 +803,6 @@ impl<'a> Builder<'a> {
         if chain_a.is_empty() && chain_b.is_empty() {
             return false;
         }
-        let corners = &self.mesh.indices[3 * t as usize..3 * t as usize + 3];
-        let [p0, p1, p2] = [0, 1, 2].map(|k| self.mesh.positions[corners[k] as usize].as_dvec3());
-        let original = (p1 - p0).cross(p2 - p0);
         let at = |chain: &[(u32, DVec3)], fixed: u32, level: u32| {
             chain
                 .iter()
@@ -809,8 +816,7 @@ impl<'a> Builder<'a> {
             {
                 return false;
             }
-            // (w, a, b) keeps the winding of the original triangle (u's corner first).
-            self.turns(pu, pw, pa, pb) || (pa - pw).cross(pb - pw).dot(original) <= 0.0
+            self.turns(pu, pw, pa, pb) || self.faces_away(t, pw, pa, pb)
         })
     }
 
