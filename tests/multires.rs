@@ -269,8 +269,8 @@ fn local_error_keeps_fandisks_creases() {
 #[test]
 fn no_triangle_faces_away_from_its_full_detail_side() {
     // Each collapse may turn a triangle by up to about 75 degrees from its last shape; a run
-    // of them turned one of the cow's thin parts over (at level 2,702, about 400 triangles). Every
-    // collapse is also checked against the triangle's full-detail side now.
+    // of them turned one of the cow's thin parts over (at level 2,702, about 400 triangles).
+    // Every collapse is also checked against the triangle's full-detail side now.
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../shared/testdata/meshes/cow.obj"
