@@ -150,7 +150,6 @@ fn coarse_region_beside_full_neighbour_stays_closed() {
     assert_closed(&mesh.positions, &assembled, "alternating levels");
 }
 
-/// Random partitions of a mesh: a grid, clusters, or random ids.
 #[test]
 fn band_triangles_never_turn_over() {
     // A band triangle (corners in two regions) takes its shape from both regions' levels.
@@ -210,6 +209,7 @@ fn band_triangles_never_turn_over() {
     }
 }
 
+/// Random partitions of a mesh: a grid, clusters, or random ids.
 fn arb_partition(mesh: &IndexedMesh, choice: u8, n: usize, seed: u64) -> Partition {
     match choice % 3 {
         0 => Partition::grid(mesh, GridPlane::XZ, 1 + n % 4, 1 + (n / 4) % 3).unwrap(),

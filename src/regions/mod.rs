@@ -429,7 +429,9 @@ impl RegionMesh {
 type BuiltRegion = (Region, Vec<(u32, u32, u32)>);
 
 /// A greedy colouring of the regions' adjacency (two regions are adjacent when a triangle has
-/// corners in both): no two neighbours share a colour.
+/// corners in both): no two neighbours share a colour. Clustered and grid partitions need a
+/// handful of colours; a fragmented partition (random ids) can need nearly one per region,
+/// and its regions are then built one after another.
 fn colour_regions(mesh: &IndexedMesh, region_of: &[u32], count: usize) -> Vec<u32> {
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); count];
     for t in mesh.indices.chunks_exact(3) {
@@ -445,6 +447,8 @@ fn colour_regions(mesh: &IndexedMesh, region_of: &[u32], count: usize) -> Vec<u3
     let mut colour = vec![u32::MAX; count];
     let mut taken = Vec::new();
     for r in 0..count {
+        neighbours[r].sort_unstable();
+        neighbours[r].dedup();
         taken.clear();
         taken.extend(
             neighbours[r]
@@ -452,7 +456,14 @@ fn colour_regions(mesh: &IndexedMesh, region_of: &[u32], count: usize) -> Vec<u3
                 .map(|&n| colour[n as usize])
                 .filter(|&c| c != u32::MAX),
         );
-        colour[r] = (0..).find(|c| !taken.contains(c)).expect("a free colour");
+        taken.sort_unstable();
+        taken.dedup();
+        // The smallest colour not taken: the first gap in the sorted list.
+        colour[r] = taken
+            .iter()
+            .enumerate()
+            .find(|&(i, &c)| c != i as u32)
+            .map_or(taken.len() as u32, |(i, _)| i as u32);
     }
     colour
 }
