@@ -232,11 +232,7 @@ fn local_error_keeps_fandisks_creases() {
     // its curved side move almost for free, and at 10% a chord cuts the crease where the flat
     // face meets the curved side (0.0022 of the diagonal with the quadric alone). The local
     // error, the height of the removed vertex over its moved fan, is not diluted.
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/testdata/meshes/fandisk.obj"
-    );
-    let (mesh, _) = IndexedMesh::load(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mesh = testdata_mesh("fandisk.obj");
     let hausdorff = |local_weight| {
         let options = BuildOptions {
             local_weight,
@@ -271,11 +267,7 @@ fn no_triangle_faces_away_from_its_full_detail_side() {
     // Each collapse may turn a triangle by up to about 75 degrees from its last shape; a run
     // of them turned one of the cow's thin parts over (at level 2,702, about 400 triangles).
     // Every collapse is also checked against the triangle's full-detail side now.
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/testdata/meshes/cow.obj"
-    );
-    let (mesh, _) = IndexedMesh::load(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mesh = testdata_mesh("cow.obj");
     let pm = build(&mesh);
     let full = pm.full_indices();
     let positions = &pm.vertices().positions;

@@ -158,11 +158,7 @@ fn band_triangles_never_turn_over() {
     // fandisk and 173 on spot in 40 random mixes in 16 clusters); now the region built later
     // checks them at every level of the one built first, and against their full-detail side.
     for name in ["fandisk.obj", "spot.obj"] {
-        let path = format!(
-            "{}/../shared/testdata/meshes/{name}",
-            env!("CARGO_MANIFEST_DIR")
-        );
-        let (mesh, _) = IndexedMesh::load(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let mesh = testdata_mesh(name);
         let partition = Partition::clusters(&mesh, 16).expect("valid mesh");
         let regions = build(&mesh, &partition);
         let mut x = 0x9E37_79B9_7F4A_7C15u64;

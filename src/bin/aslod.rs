@@ -386,7 +386,6 @@ fn compare_rotated(
 ) -> Result<Vec<RotatedRow>, Box<dyn std::error::Error>> {
     // ln of each ratio summed, and the copies at most 1, per ratio.
     let mut sums = vec![(0.0f64, 0.0f64, 0usize, 0usize); ratios.len()];
-    let distance_options = DistanceOptions::default();
     for seed in 1..=copies as u64 {
         let turn = rotation(seed);
         let mut turned = mesh.clone();
@@ -400,21 +399,9 @@ fn compare_rotated(
         }
         let pm = ProgressiveMesh::build(&turned, options)?;
         let mut cache = PolygonCache::new(&pm);
-        let original = MeshRef::new(&turned.positions, &turned.indices);
         for (sum, &ratio) in sums.iter_mut().zip(ratios) {
             let target = ((ratio * mesh.triangle_count() as f64).round() as usize).max(1);
-            cache.set_triangle_count(&pm, target);
-            let ours = mesh_distance(
-                original,
-                MeshRef::new(&pm.vertices().positions, cache.indices()),
-                &distance_options,
-            );
-            let simplified = meshopt_simplify(&turned, target);
-            let theirs = mesh_distance(
-                original,
-                MeshRef::new(&turned.positions, &simplified),
-                &distance_options,
-            );
+            let (_, ours, _, theirs) = distances_at(&turned, &pm, &mut cache, target);
             let h = quotient(ours.hausdorff, theirs.hausdorff);
             let r = quotient(ours.rms, theirs.rms);
             sum.0 += h.ln();
@@ -435,6 +422,31 @@ fn compare_rotated(
             rms_at_most: rn,
         })
         .collect())
+}
+
+/// Our level of at most `target` triangles (`pm`, moved there in `cache`) and meshopt's
+/// simplification of `mesh` to `target`: each one's triangle count and distance to `mesh`.
+fn distances_at(
+    mesh: &IndexedMesh,
+    pm: &ProgressiveMesh,
+    cache: &mut PolygonCache,
+    target: usize,
+) -> (usize, Distance, usize, Distance) {
+    let options = DistanceOptions::default();
+    let original = MeshRef::new(&mesh.positions, &mesh.indices);
+    let ours_triangles = cache.set_triangle_count(pm, target);
+    let ours = mesh_distance(
+        original,
+        MeshRef::new(&pm.vertices().positions, cache.indices()),
+        &options,
+    );
+    let simplified = meshopt_simplify(mesh, target);
+    let theirs = mesh_distance(
+        original,
+        MeshRef::new(&mesh.positions, &simplified),
+        &options,
+    );
+    (ours_triangles, ours, simplified.len() / 3, theirs)
 }
 
 /// `a / b` for distances: 1 when both are 0.
@@ -478,24 +490,14 @@ fn compare(args: &CompareArgs) -> CliResult {
     let mut rows = Vec::new();
     for &ratio in ratios {
         let target = target_of(ratio);
-        let ours_triangles = cache.set_triangle_count(&pm, target);
-        let ours = mesh_distance(
-            original,
-            MeshRef::new(&pm.vertices().positions, cache.indices()),
-            &options,
-        );
-        let simplified = meshopt_simplify(&mesh, target);
-        let meshopt = mesh_distance(
-            original,
-            MeshRef::new(&mesh.positions, &simplified),
-            &options,
-        );
+        let (ours_triangles, ours, meshopt_triangles, meshopt) =
+            distances_at(&mesh, &pm, &mut cache, target);
         rows.push(Row {
             ratio,
             target,
             ours_triangles,
             ours,
-            meshopt_triangles: simplified.len() / 3,
+            meshopt_triangles,
             meshopt,
         });
     }

@@ -887,29 +887,23 @@ impl<'a> Builder<'a> {
                 candidates.push((e, w));
             }
         }
-        if self.local_weight > 0.0 {
-            // The cheapest quadric error first. The local error only adds, so a candidate
-            // whose quadric error alone levels above the best cost so far cannot win: it
-            // keeps that as a lower bound (all a runner-up needs).
-            let first = (0..candidates.len())
-                .min_by(|&i, &j| candidates[i].0.total_cmp(&candidates[j].0))
-                .unwrap_or(0);
-            let mut best = f64::INFINITY;
-            for i in (first..candidates.len()).chain(0..first) {
-                let (q, w) = candidates[i];
-                let bound = settle(q);
-                candidates[i].0 = if !validate && self.level(bound) > best {
-                    bound
-                } else {
-                    let cost = settle(q + self.local_weight * self.local_error(u, w, &fan));
-                    best = best.min(self.level(cost));
-                    cost
-                };
-            }
-        } else {
-            for c in &mut candidates {
-                c.0 = settle(c.0);
-            }
+        // The cheapest quadric error first. The local error only adds, so a candidate whose
+        // quadric error alone levels above the best cost so far cannot win: it keeps that as a
+        // lower bound (all a runner-up needs; without a local weight it is the cost).
+        let first = (0..candidates.len())
+            .min_by(|&i, &j| candidates[i].0.total_cmp(&candidates[j].0))
+            .unwrap_or(0);
+        let mut best = f64::INFINITY;
+        for i in (first..candidates.len()).chain(0..first) {
+            let (q, w) = candidates[i];
+            let bound = settle(q);
+            candidates[i].0 = if !validate && self.level(bound) > best {
+                bound
+            } else {
+                let cost = self.cost(u, w, q, &fan);
+                best = best.min(self.level(cost));
+                cost
+            };
         }
         self.scratch.neighbors = nu;
         self.scratch.fan = fan;
@@ -935,9 +929,8 @@ impl<'a> Builder<'a> {
     }
 
     /// The quadric error of moving `u` onto its neighbour `w`, or `None` when the kinds
-    /// forbid it (the front rule is the caller's). A collapse's cost is this plus
-    /// [`local_weight`](BuildOptions::local_weight) times its
-    /// [`local_error`](Self::local_error), [`settle`]d.
+    /// forbid it (the front rule is the caller's); [`cost`](Self::cost) adds the local
+    /// error.
     #[inline]
     fn quadric_cost(&self, u: u32, w: u32) -> Option<f64> {
         if self.kind[w as usize] == Kind::Pinned
@@ -949,6 +942,18 @@ impl<'a> Builder<'a> {
         // merged into u): meshoptimizer's choice, which beat the merged quadric
         // (Q_u + Q_w)(p_w) on Hausdorff distance in `aslod compare` on the bunny.
         Some(self.quadrics[u as usize].error(self.points[w as usize]))
+    }
+
+    /// The cost of collapsing `u` onto `w`, whose quadric error is `quadric`: that plus
+    /// [`local_weight`](BuildOptions::local_weight) times the
+    /// [`local_error`](Self::local_error) over `u`'s `fan`, [`settle`]d.
+    #[inline]
+    fn cost(&self, u: u32, w: u32, quadric: f64, fan: &[(u32, u32, DVec3, DVec3)]) -> f64 {
+        if self.local_weight > 0.0 {
+            settle(quadric + self.local_weight * self.local_error(u, w, fan))
+        } else {
+            settle(quadric)
+        }
     }
 
     /// The far edge of every triangle around `u`, in winding order, into `out` (cleared).
@@ -1090,12 +1095,7 @@ impl<'a> Builder<'a> {
                 .filter(|c| c.1 != chosen)
                 .map(|&(_, y)| {
                     let q = self.quadric_cost(x, y).expect("a candidate is allowed");
-                    let local = if self.local_weight > 0.0 {
-                        self.local_weight * self.local_error(x, y, &fan)
-                    } else {
-                        0.0
-                    };
-                    self.level(settle(q + local))
+                    self.level(self.cost(x, y, q, &fan))
                 })
                 .fold(f64::INFINITY, f64::min);
             assert!(

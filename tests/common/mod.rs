@@ -6,6 +6,17 @@ use glam::{Vec2, Vec3};
 use proptest::prelude::*;
 use std::collections::HashMap;
 
+/// A mesh of `../shared/testdata/meshes`, read in place.
+pub fn testdata_mesh(name: &str) -> IndexedMesh {
+    let path = format!(
+        "{}/../shared/testdata/meshes/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    IndexedMesh::load(&path)
+        .unwrap_or_else(|e| panic!("{path}: {e}"))
+        .0
+}
+
 /// Triangles as a sorted list of corner triples (corner order kept).
 pub fn triangle_multiset(indices: &[u32]) -> Vec<[u32; 3]> {
     let mut tris: Vec<[u32; 3]> = indices
