@@ -90,6 +90,9 @@ struct CompareArgs {
     /// Our build's `BuildOptions::local_weight` (default: the crate's default).
     #[arg(long)]
     local_weight: Option<f64>,
+    /// Our build's `BuildOptions::weight_exponent` (default: the crate's default).
+    #[arg(long)]
+    weight_exponent: Option<f64>,
 }
 
 fn main() -> ExitCode {
@@ -477,6 +480,9 @@ fn compare(args: &CompareArgs) -> CliResult {
     let mut build_options = BuildOptions::default();
     if let Some(w) = args.local_weight {
         build_options.local_weight = w;
+    }
+    if let Some(e) = args.weight_exponent {
+        build_options.weight_exponent = e;
     }
 
     let (ours_ms, pm) = time_ms(runs, || ProgressiveMesh::build(&mesh, &build_options));

@@ -1599,6 +1599,66 @@ mod tests {
         .unwrap();
     }
 
+    /// Exponents outside 0..=1 are clamped, NaN counts as 0.
+    #[test]
+    fn weight_exponents_outside_zero_to_one_are_clamped() {
+        let grid = test_grid(12, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
+        let n = grid.triangle_count();
+        let moves = |weight_exponent: f64| {
+            let options = BuildOptions {
+                weight_exponent,
+                ..BuildOptions::default()
+            };
+            build(&grid, &options, &Constraints::default(), n, &mut |_, _| {})
+                .unwrap()
+                .moves
+        };
+        assert_eq!(moves(-1.0), moves(0.0));
+        assert_eq!(moves(f64::NAN), moves(0.0));
+        assert_eq!(moves(5.0), moves(1.0));
+        assert_ne!(moves(1.0), moves(0.0), "the exponent matters on this grid");
+    }
+
+    #[test]
+    fn the_error_table_holds_the_unscaled_error() {
+        // The exponent scales the quadric error in the ranking only: each level's error is
+        // the mean quadric error plus the local error of its collapse (the largest so far).
+        let grid = test_grid(10, |x, z| ((x * 3 + z * 5) % 4) as f32 * 0.2);
+        let options = BuildOptions {
+            weight_exponent: 1.0,
+            ..BuildOptions::default()
+        };
+        let mut builder = Builder::new(&grid, &options, None, None);
+        builder.fill_quadrics();
+        let mut fan = Vec::new();
+        let (mut checked, mut apart) = (0, 0);
+        for u in 0..builder.adj.len() as u32 {
+            if builder.pos[u as usize] != u || builder.adj[u as usize].is_empty() {
+                continue;
+            }
+            builder.fan_into(u, &mut fan);
+            let w = fan[0].0;
+            let Some(scaled) = builder.quadric_cost(u, w) else {
+                continue;
+            };
+            let mean = builder.quadrics[u as usize].error(builder.points[w as usize]);
+            let local = options.local_weight * builder.local_error(u, w, &fan);
+            let cost = builder.cost(u, w, scaled, &fan);
+            assert_eq!(builder.table_error(u, w, cost), settle(mean + local));
+            let weight = builder.quadrics[u as usize].weight();
+            assert!((scaled - mean * weight / builder.mean_weight).abs() <= 1e-12 * scaled.abs());
+            checked += 1;
+            if (weight / builder.mean_weight - 1.0).abs() > 0.1 && mean > 0.0 {
+                apart += 1;
+            }
+        }
+        assert!(checked > 50, "{checked} vertices checked");
+        assert!(
+            apart > 10,
+            "only {apart} vertices whose scale is not about 1"
+        );
+    }
+
     /// Negative border weights count as 0 (they would make a vertex lighter as it absorbs
     /// others, which the re-ranking relies on never happening): the same sequence as 0.
     #[test]
@@ -1768,7 +1828,8 @@ mod tests {
         //                                                      4
         // Moving the apex onto 1 turns its triangles (0,2,3) and (0,3,4) into (1,2,3) and
         // (1,3,4), both in the plane z = 0: the apex goes 1 away from them, so the local error
-        // is 1 (squared), and the collapse costs the quadric error plus half of that.
+        // is 1 (squared), and the collapse costs the (scaled) quadric error plus
+        // `local_weight` times that.
         let positions = vec![Vec3::Z, Vec3::X, Vec3::Y, Vec3::NEG_X, Vec3::NEG_Y];
         let indices = vec![0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 1];
         let mesh = IndexedMesh::new(positions, indices);
@@ -1778,10 +1839,12 @@ mod tests {
         let mut fan = Vec::new();
         builder.fan_into(0, &mut fan);
         assert_eq!(builder.local_error(0, 1, &fan), 1.0);
-        let quadric = builder.quadrics[0].error(builder.points[1]);
+        let quadric = builder
+            .quadric_cost(0, 1)
+            .expect("an inner vertex may move");
         let (cost, target, _) = builder.choose(0, false, None).expect("the apex can move");
         assert_eq!(target, 1, "four equal costs: the lowest index wins");
-        assert_eq!(cost, settle(quadric + 0.5));
+        assert_eq!(cost, settle(quadric + options.local_weight));
         // Moving 2 onto 1 along the open border removes (0,1,2) and turns (0,2,3) into
         // (0,1,3), in the plane y = 0, which 2 lies 1 away from: the outline's cut counts.
         builder.fan_into(2, &mut fan);
