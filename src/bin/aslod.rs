@@ -428,13 +428,14 @@ fn compare_rotated(
 }
 
 /// Our level of at most `target` triangles (`pm`, moved there in `cache`) and meshopt's
-/// simplification of `mesh` to `target`: each one's triangle count and distance to `mesh`.
+/// simplification of `mesh` to `target`: each one's triangle count and distance to `mesh`,
+/// and meshoptimizer's result itself.
 fn distances_at(
     mesh: &IndexedMesh,
     pm: &ProgressiveMesh,
     cache: &mut PolygonCache,
     target: usize,
-) -> (usize, Distance, usize, Distance) {
+) -> (usize, Distance, Vec<u32>, Distance) {
     let options = DistanceOptions::default();
     let original = MeshRef::new(&mesh.positions, &mesh.indices);
     let ours_triangles = cache.set_triangle_count(pm, target);
@@ -449,7 +450,25 @@ fn distances_at(
         MeshRef::new(&mesh.positions, &simplified),
         &options,
     );
-    (ours_triangles, ours, simplified.len() / 3, theirs)
+    (ours_triangles, ours, simplified, theirs)
+}
+
+/// Edges shared by more than two triangles (positions welded by value): a surface pinched
+/// into a non-manifold edge. Our levels never have one on a closed manifold input (the link
+/// condition); meshoptimizer does not check for it.
+fn pinched_edges(positions: &[Vec3], indices: &[u32]) -> usize {
+    let weld = bevy_aslod::mesh::weld_positions(positions);
+    let mut uses = std::collections::HashMap::new();
+    for t in indices.chunks_exact(3) {
+        for k in 0..3 {
+            let (a, b) = (
+                weld.remap[t[k] as usize],
+                weld.remap[t[(k + 1) % 3] as usize],
+            );
+            *uses.entry((a.min(b), a.max(b))).or_insert(0u32) += 1;
+        }
+    }
+    uses.values().filter(|&&n| n > 2).count()
 }
 
 /// `a / b` for distances: 1 when both are 0.
@@ -468,6 +487,9 @@ struct Row {
     ours: Distance,
     meshopt_triangles: usize,
     meshopt: Distance,
+    /// [`pinched_edges`] of our level and of meshoptimizer's result.
+    ours_pinched: usize,
+    meshopt_pinched: usize,
 }
 
 fn compare(args: &CompareArgs) -> CliResult {
@@ -496,15 +518,17 @@ fn compare(args: &CompareArgs) -> CliResult {
     let mut rows = Vec::new();
     for &ratio in ratios {
         let target = target_of(ratio);
-        let (ours_triangles, ours, meshopt_triangles, meshopt) =
+        let (ours_triangles, ours, simplified, meshopt) =
             distances_at(&mesh, &pm, &mut cache, target);
         rows.push(Row {
             ratio,
             target,
             ours_triangles,
             ours,
-            meshopt_triangles,
+            meshopt_triangles: simplified.len() / 3,
             meshopt,
+            ours_pinched: pinched_edges(&pm.vertices().positions, cache.indices()),
+            meshopt_pinched: pinched_edges(&mesh.positions, &simplified),
         });
     }
     let source_bytes = indexed_mesh_bytes(&mesh);
@@ -573,8 +597,8 @@ fn compare(args: &CompareArgs) -> CliResult {
             "ratios": rows.iter().map(|r| serde_json::json!({
                 "ratio": r.ratio,
                 "target": r.target,
-                "ours": {"triangles": r.ours_triangles, "hausdorff": r.ours.hausdorff, "rms": r.ours.rms},
-                "meshopt": {"triangles": r.meshopt_triangles, "hausdorff": r.meshopt.hausdorff, "rms": r.meshopt.rms},
+                "ours": {"triangles": r.ours_triangles, "hausdorff": r.ours.hausdorff, "rms": r.ours.rms, "pinched_edges": r.ours_pinched},
+                "meshopt": {"triangles": r.meshopt_triangles, "hausdorff": r.meshopt.hausdorff, "rms": r.meshopt.rms, "pinched_edges": r.meshopt_pinched},
                 "hausdorff_ratio": r.ours.hausdorff / r.meshopt.hausdorff,
                 "rms_ratio": r.ours.rms / r.meshopt.rms,
             })).collect::<Vec<_>>(),
@@ -606,7 +630,7 @@ fn compare(args: &CompareArgs) -> CliResult {
         source_bytes as f64 / t as f64
     );
     println!(
-        "{:>6} {:>8} | {:>8} {:>10} {:>10} | {:>8} {:>10} {:>10} | {:>7} {:>7}",
+        "{:>6} {:>8} | {:>8} {:>10} {:>10} | {:>8} {:>10} {:>10} | {:>7} {:>7} | {:>7}",
         "ratio",
         "target",
         "ours",
@@ -616,11 +640,12 @@ fn compare(args: &CompareArgs) -> CliResult {
         "hausdorff",
         "rms",
         "H ratio",
-        "RMS rat"
+        "RMS rat",
+        "pinched"
     );
     for r in &rows {
         println!(
-            "{:>6} {:>8} | {:>8} {:>10.6} {:>10.6} | {:>8} {:>10.6} {:>10.6} | {:>7.3} {:>7.3}",
+            "{:>6} {:>8} | {:>8} {:>10.6} {:>10.6} | {:>8} {:>10.6} {:>10.6} | {:>7.3} {:>7.3} | {:>7}",
             r.ratio,
             r.target,
             r.ours_triangles,
@@ -630,9 +655,11 @@ fn compare(args: &CompareArgs) -> CliResult {
             r.meshopt.hausdorff,
             r.meshopt.rms,
             r.ours.hausdorff / r.meshopt.hausdorff,
-            r.ours.rms / r.meshopt.rms
+            r.ours.rms / r.meshopt.rms,
+            format!("{}/{}", r.ours_pinched, r.meshopt_pinched)
         );
     }
+    println!("pinched: edges shared by more than two triangles (non-manifold), ours/meshopt");
     if let Some(spec) = regions_spec {
         println!("partitioned ({spec}), every region at the ratio, against the whole mesh:");
         println!(
