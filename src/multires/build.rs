@@ -10,7 +10,8 @@
 //!    complex, pinned);
 //! 3. fill quadrics: face planes, plus edge planes along borders and attribute seams;
 //! 4. rank every position's cheapest valid half-edge collapse in a priority queue (its
-//!    quadric error plus its local error, the removed vertex's height over its moved fan);
+//!    quadric error, scaled by how much surface the vertex stands for, plus its local error,
+//!    the removed vertex's height over its moved fan);
 //! 5. pop, re-validate, perform, record, and re-rank the one-ring of the surviving vertex;
 //! 6. lay the triangles out in removal order and pack the records.
 

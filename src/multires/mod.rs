@@ -1,7 +1,8 @@
 //! Progressive meshes: one mesh that moves to any triangle count, cheaply and exactly.
 //!
 //! [`ProgressiveMesh::build`] runs QEM-ranked half-edge collapses (each removes one vertex by
-//! moving it onto a neighbour; its cost is the quadric error plus a local error, see
+//! moving it onto a neighbour; its cost is the quadric error, see
+//! [`BuildOptions::weight_exponent`], plus a local error, see
 //! [`BuildOptions::local_weight`]) from the full mesh down to a base mesh, and records them. The
 //! triangles are stored in removal order (Hoxha's MR-model; MOM's incremental sequence), so
 //! the triangles of any level are a prefix of one index buffer, and every level uses a subset
