@@ -75,6 +75,37 @@ fn flat_square_first_collapse_is_the_centre_onto_the_lowest_midpoint() {
 }
 
 #[test]
+fn the_error_table_records_unscaled_errors() {
+    // The flat square above: its first collapse is the centre onto a midpoint with the weight
+    // exponent (the centre is the lightest vertex) and a border midpoint onto a corner
+    // without. Both move a vertex by 1 on a flat face, so both cost only the regularization,
+    // 1e-7 x 1², and the table records sqrt(1e-7) over the diagonal, sqrt(8), whatever the
+    // exponent; the ranking cost of the centre's move is (8 / 20.4)^exponent times that
+    // (0.39 with exponent 1; its weight is 8 unit triangles, the mean 20.4).
+    let positions = (0..9)
+        .map(|i| Vec3::new((i % 3) as f32, (i / 3) as f32, 0.0))
+        .collect();
+    let indices = vec![
+        0, 1, 4, 1, 2, 4, 2, 5, 4, 5, 8, 4, 8, 7, 4, 7, 6, 4, 6, 3, 4, 3, 0, 4,
+    ];
+    let mesh = IndexedMesh::new(positions, indices);
+    let expected = (1e-7f32).sqrt() / 8f32.sqrt();
+    for weight_exponent in [0.0, 0.25, 1.0] {
+        let options = BuildOptions {
+            weight_exponent,
+            ..BuildOptions::default()
+        };
+        let pm = ProgressiveMesh::build(&mesh, &options).expect("valid mesh");
+        let error = pm.level_error(1);
+        // The table rounds up by at most 0.8 % (16 bits).
+        assert!(
+            error >= expected * 0.9999 && error <= expected * 1.01,
+            "exponent {weight_exponent}: {error}, expected {expected}"
+        );
+    }
+}
+
+#[test]
 fn tetrahedron_is_stuck() {
     let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
     let indices = vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];

@@ -10,7 +10,7 @@
 //!    complex, pinned);
 //! 3. fill quadrics: face planes, plus edge planes along borders and attribute seams;
 //! 4. rank every position's cheapest valid half-edge collapse in a priority queue (its
-//!    quadric error, scaled by how much surface the vertex stands for, plus its local error,
+//!    quadric error, scaled by the quadric weight the vertex has absorbed, plus its local error,
 //!    the removed vertex's height over its moved fan);
 //! 5. pop, re-validate, perform, record, and re-rank the one-ring of the surviving vertex;
 //! 6. lay the triangles out in removal order and pack the records.
@@ -31,7 +31,9 @@ pub struct BuildOptions {
     /// Stop collapsing when the next collapse's error (relative to the bounding-box diagonal)
     /// would exceed this. Default: `f32::INFINITY`. The error table stores errors rounded up
     /// by up to 0.8 % (16 bits), so [`ProgressiveMesh::level_error`] of the last level may
-    /// read slightly above this bound.
+    /// read slightly above this bound. With a [`weight_exponent`](Self::weight_exponent),
+    /// collapses are ranked by a scaled cost and this bound applies to the unscaled error,
+    /// so the build may stop while collapses with a smaller error are still queued.
     pub max_error: f32,
     /// How strongly open borders keep their shape, relative to the faces. Default: `10.0`
     /// (meshoptimizer's value). Negative or non-finite values count as `0.0` (with a
@@ -61,10 +63,12 @@ pub struct BuildOptions {
     /// meshoptimizer; see the README). `0.0` is the plain quadric error; negative or
     /// non-finite values count as `0.0` (with a warning).
     pub local_weight: f64,
-    /// How much the area a vertex has absorbed counts when collapses are ranked: the
+    /// How much the surface a vertex has absorbed counts when collapses are ranked: the
     /// quadric's mean error is multiplied by `(weight / mean) ^ weight_exponent`, where
-    /// `weight` is the quadric weight merged into the vertex that goes and `mean` the mean
-    /// weight of a vertex before any collapse. `0.0` ranks by the mean alone
+    /// `weight` is the quadric weight merged into the vertex that goes (each face adds the
+    /// square root of its doubled area, border and seam edges their length times their
+    /// weight) and `mean` the mean weight, before any collapse, of the vertices that may move
+    /// (not those pinned, such as another region's). `0.0` ranks by the mean alone
     /// (meshoptimizer's normalisation); `1.0` by the weighted sum of squared distances
     /// (Garland and Heckbert's), which measures how much surface moves and so the RMS
     /// distance, but lets small features go first. In between, a vertex that stands for a
@@ -151,7 +155,7 @@ struct Builder<'a> {
     full_rank_due: Vec<bool>,
     /// Per position: a lower bound on the [`level`](Builder::level)led costs of its other
     /// candidates (exact when ranked in full, but for candidates that could not win, which
-    /// [`choose`](Builder::choose) prices by their quadric error alone).
+    /// [`choose`](Builder::choose) prices by their (scaled) quadric error alone).
     runner_up: Vec<f64>,
     collapses: Vec<Collapse>,
     rewrites: Vec<Rewrite>,
@@ -613,7 +617,11 @@ impl<'a> Builder<'a> {
         }
         if self.weight_exponent > 0.0 {
             let (sum, count) = (0..self.quadrics.len())
-                .filter(|&p| self.pos[p] == p as u32 && self.quadrics[p].weight() > 0.0)
+                .filter(|&p| {
+                    self.pos[p] == p as u32
+                        && self.kind[p] != Kind::Pinned
+                        && self.quadrics[p].weight() > 0.0
+                })
                 .fold((0.0, 0usize), |(sum, count), p| {
                     (sum + self.quadrics[p].weight(), count + 1)
                 });
@@ -888,7 +896,8 @@ impl<'a> Builder<'a> {
     ///
     /// Also returns the lowest [`level`](Self::level)led cost among the other candidates
     /// (`f64::INFINITY` when there is none), which [`rerank`](Self::rerank) uses; a
-    /// candidate that could not win counts with its quadric error alone, a lower bound.
+    /// candidate that could not win counts with its (scaled) quadric error alone, a lower
+    /// bound.
     fn choose(&mut self, u: u32, validate: bool, ring: Option<&[u32]>) -> Option<(f64, u32, f64)> {
         // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
         // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
@@ -1085,7 +1094,8 @@ impl<'a> Builder<'a> {
     /// positions around `u` before the collapse).
     ///
     /// Points do not move, and only `w`'s quadric changed, so every candidate of `x` costs
-    /// what it did; `w` only lost ground (its weight, the tie-break, grew). A vertex that was
+    /// what it did (the weight exponent's factor depends on `x`'s own quadric only); `w` only
+    /// lost ground (its weight, the tie-break, grew). A vertex that was
     /// not next to `u` keeps its triangles and candidates: its choice stands. One that was
     /// next to `u` lost the candidate `u` and may have gained `w` (or `w`'s kind rule may
     /// have changed): if its choice was neither, the rest of its candidates are as they
@@ -1618,12 +1628,28 @@ mod tests {
         assert_eq!(moves(f64::NAN), moves(0.0));
         assert_eq!(moves(5.0), moves(1.0));
         assert_ne!(moves(1.0), moves(0.0), "the exponent matters on this grid");
+        for (given, used) in [
+            (-1.0, 0.0),
+            (f64::NAN, 0.0),
+            (f64::INFINITY, 0.0),
+            (f64::NEG_INFINITY, 0.0),
+            (5.0, 1.0),
+            (0.3, 0.3),
+        ] {
+            let options = BuildOptions {
+                weight_exponent: given,
+                ..BuildOptions::default()
+            };
+            let builder = Builder::new(&grid, &options, None, None);
+            assert_eq!(builder.weight_exponent, used, "{given}");
+        }
     }
 
     #[test]
-    fn the_error_table_holds_the_unscaled_error() {
-        // The exponent scales the quadric error in the ranking only: each level's error is
-        // the mean quadric error plus the local error of its collapse (the largest so far).
+    fn costs_scale_the_quadric_error_and_table_errors_do_not() {
+        // The exponent scales the quadric error in the ranking only: the error recorded for a
+        // collapse is the mean quadric error plus the local error (a build's table is checked
+        // in `tests/multires.rs`).
         let grid = test_grid(10, |x, z| ((x * 3 + z * 5) % 4) as f32 * 0.2);
         let options = BuildOptions {
             weight_exponent: 1.0,
@@ -1765,19 +1791,46 @@ mod tests {
     fn incremental_reranks_match_full_ranks() {
         let dir =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/testdata/meshes");
-        let options = BuildOptions::default();
-        let build_all = |mesh: &IndexedMesh| {
-            let n = mesh.triangle_count();
-            build(mesh, &options, &Constraints::default(), n, &mut |_, _| {}).unwrap();
-        };
-        for name in ["spot.obj", "fandisk.obj", "stanford-bunny.obj"] {
-            let (mesh, _) = IndexedMesh::load(dir.join(name)).expect("a test mesh");
-            build_all(&mesh);
-            if name != "stanford-bunny.obj" {
-                let partition = crate::regions::Partition::clusters(&mesh, 8).unwrap();
-                crate::regions::RegionMesh::build(&mesh, &partition, &options).unwrap();
+        // The defaults; and without a local weight, where a vertex next to `u` takes the
+        // shortcuts too, with the weight exponent's factor in its costs (the factor depends on
+        // the vertex's own quadric only, which a collapse elsewhere leaves alone).
+        let variants = [
+            BuildOptions::default(),
+            BuildOptions {
+                local_weight: 0.0,
+                ..BuildOptions::default()
+            },
+            BuildOptions {
+                local_weight: 0.0,
+                weight_exponent: 1.0,
+                ..BuildOptions::default()
+            },
+        ];
+        for (i, options) in variants.iter().enumerate() {
+            let build_all = |mesh: &IndexedMesh| {
+                let n = mesh.triangle_count();
+                build(mesh, options, &Constraints::default(), n, &mut |_, _| {}).unwrap();
+            };
+            // The bunny with the defaults only: it is the slowest.
+            let names: &[&str] = if i == 0 {
+                &["spot.obj", "fandisk.obj", "stanford-bunny.obj"]
+            } else {
+                &["spot.obj", "fandisk.obj"]
+            };
+            for name in names {
+                let (mesh, _) = IndexedMesh::load(dir.join(name)).expect("a test mesh");
+                build_all(&mesh);
+                if *name != "stanford-bunny.obj" {
+                    let partition = crate::regions::Partition::clusters(&mesh, 8).unwrap();
+                    crate::regions::RegionMesh::build(&mesh, &partition, options).unwrap();
+                }
             }
+            check_small_meshes(options, &build_all);
         }
+    }
+
+    /// [`incremental_reranks_match_full_ranks`] on small meshes.
+    fn check_small_meshes(options: &BuildOptions, build_all: &dyn Fn(&IndexedMesh)) {
         // A bumpy grid; the same with a UV seam down its middle (the middle column's vertices
         // doubled, the right half using the copies); a fin of three triangles on one edge
         // beside a separate quad.
@@ -1799,7 +1852,7 @@ mod tests {
                 }
             }
         }
-        assert!(super::Builder::new(&seamed, &options, None, None).has_seams);
+        assert!(super::Builder::new(&seamed, options, None, None).has_seams);
         build_all(&seamed);
         let fin = IndexedMesh::new(
             [
