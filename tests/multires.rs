@@ -23,9 +23,10 @@ fn flat_square_first_collapse_is_the_centre_onto_the_lowest_midpoint() {
     // | / | \ |      +--> x
     // 0---1---2
     //
-    // Everything is coplanar, so every collapse costs only the regularization, 1e-7 times
-    // its squared length, times the vertex's (weight / mean weight)^0.25 (the weight
-    // exponent). The centre is the lightest vertex (8 unit triangles; every border vertex
+    // Everything is coplanar, so a collapse that keeps the outline (the centre anywhere, a
+    // midpoint along its border edge) costs only the regularization, 1e-7 times its squared
+    // length, times the vertex's (weight / mean weight)^0.25 (the weight exponent); moving a
+    // corner cuts the outline and costs far more. The centre is the lightest vertex (8 unit triangles; every border vertex
     // also carries border planes, weighted 10 per edge), and its shortest edges are those to
     // the midpoints: 4 -> 1, 4 -> 3, 4 -> 5 and 4 -> 7 tie, every target weighs the same,
     // and the smallest index wins. That removes (0, 1, 4) and (1, 2, 4) and moves the other
