@@ -364,6 +364,10 @@ struct RotatedRow {
     /// Copies where ours is at most meshopt's.
     hausdorff_at_most: usize,
     rms_at_most: usize,
+    /// The most [`pinched_edges`] in one of our copies, and the fewest and the most in one of
+    /// meshoptimizer's.
+    ours_pinched_max: usize,
+    meshopt_pinched: (usize, usize),
 }
 
 /// A pseudo-random rotation for `seed` (xorshift64: an axis, then an angle).
@@ -389,6 +393,8 @@ fn compare_rotated(
 ) -> Result<Vec<RotatedRow>, Box<dyn std::error::Error>> {
     // ln of each ratio summed, and the copies at most 1, per ratio.
     let mut sums = vec![(0.0f64, 0.0f64, 0usize, 0usize); ratios.len()];
+    // Pinched edges per ratio: our most, meshoptimizer's fewest and most.
+    let mut pinched = vec![(0usize, usize::MAX, 0usize); ratios.len()];
     for seed in 1..=copies as u64 {
         let turn = rotation(seed);
         let mut turned = mesh.clone();
@@ -402,9 +408,15 @@ fn compare_rotated(
         }
         let pm = ProgressiveMesh::build(&turned, options)?;
         let mut cache = PolygonCache::new(&pm);
-        for (sum, &ratio) in sums.iter_mut().zip(ratios) {
+        for ((sum, pinch), &ratio) in sums.iter_mut().zip(&mut pinched).zip(ratios) {
             let target = ((ratio * mesh.triangle_count() as f64).round() as usize).max(1);
-            let (_, ours, _, theirs) = distances_at(&turned, &pm, &mut cache, target);
+            let (_, ours, simplified, theirs) = distances_at(&turned, &pm, &mut cache, target);
+            let theirs_pinched = pinched_edges(&turned.positions, &simplified);
+            pinch.0 = pinch
+                .0
+                .max(pinched_edges(&pm.vertices().positions, cache.indices()));
+            pinch.1 = pinch.1.min(theirs_pinched);
+            pinch.2 = pinch.2.max(theirs_pinched);
             let h = quotient(ours.hausdorff, theirs.hausdorff);
             let r = quotient(ours.rms, theirs.rms);
             sum.0 += h.ln();
@@ -415,15 +427,20 @@ fn compare_rotated(
     }
     Ok(sums
         .iter()
+        .zip(&pinched)
         .zip(ratios)
         .filter(|_| copies > 0)
-        .map(|(&(h, r, hn, rn), &ratio)| RotatedRow {
-            ratio,
-            hausdorff_ratio: (h / copies as f64).exp(),
-            rms_ratio: (r / copies as f64).exp(),
-            hausdorff_at_most: hn,
-            rms_at_most: rn,
-        })
+        .map(
+            |((&(h, r, hn, rn), &(ours, fewest, most)), &ratio)| RotatedRow {
+                ratio,
+                hausdorff_ratio: (h / copies as f64).exp(),
+                rms_ratio: (r / copies as f64).exp(),
+                hausdorff_at_most: hn,
+                rms_at_most: rn,
+                ours_pinched_max: ours,
+                meshopt_pinched: (fewest, most),
+            },
+        )
         .collect())
 }
 
@@ -592,6 +609,9 @@ fn compare(args: &CompareArgs) -> CliResult {
                     "rms_ratio_geomean": r.rms_ratio,
                     "hausdorff_at_most_meshopt": r.hausdorff_at_most,
                     "rms_at_most_meshopt": r.rms_at_most,
+                    "ours_pinched_edges_max": r.ours_pinched_max,
+                    "meshopt_pinched_edges_min": r.meshopt_pinched.0,
+                    "meshopt_pinched_edges_max": r.meshopt_pinched.1,
                 })).collect::<Vec<_>>(),
             })),
             "ratios": rows.iter().map(|r| serde_json::json!({
@@ -684,19 +704,44 @@ fn compare(args: &CompareArgs) -> CliResult {
             args.rotations
         );
         println!(
-            "{:>6} | {:>7} {:>7} | {:>7} {:>7}",
-            "ratio", "H ratio", "RMS rat", "H <= 1", "RMS <= 1"
+            "{:>6} | {:>7} {:>7} | {:>7} {:>7} | {:>9}",
+            "ratio", "H ratio", "RMS rat", "H <= 1", "RMS <= 1", "pinched"
         );
         for r in &rotated {
             println!(
-                "{:>6} | {:>7.3} {:>7.3} | {:>7} {:>7}",
+                "{:>6} | {:>7.3} {:>7.3} | {:>7} {:>7} | {:>9}",
                 r.ratio,
                 r.hausdorff_ratio,
                 r.rms_ratio,
                 format!("{}/{}", r.hausdorff_at_most, args.rotations),
-                format!("{}/{}", r.rms_at_most, args.rotations)
+                format!("{}/{}", r.rms_at_most, args.rotations),
+                format!(
+                    "{}/{}-{}",
+                    r.ours_pinched_max, r.meshopt_pinched.0, r.meshopt_pinched.1
+                )
             );
         }
+        println!("pinched: our most in one copy / meshopt's fewest-most");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pinched_edges;
+    use glam::Vec3;
+
+    #[test]
+    fn pinched_edges_counts_edges_of_more_than_two_triangles() {
+        // A closed tetrahedron: every edge has two triangles.
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        let tetrahedron = [0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];
+        assert_eq!(pinched_edges(&positions, &tetrahedron), 0);
+        // Three triangles on the edge 0-1 (a fin), one of them through a copy of vertex 0 at
+        // the same position (positions are welded by value).
+        let mut positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::NEG_Y, Vec3::Z];
+        positions.push(Vec3::ZERO);
+        let fin = [0, 1, 2, 1, 0, 3, 5, 1, 4];
+        assert_eq!(pinched_edges(&positions, &fin), 1);
+    }
 }
