@@ -15,29 +15,36 @@ fn build(mesh: &IndexedMesh) -> ProgressiveMesh {
     ProgressiveMesh::build(mesh, &BuildOptions::default()).expect("valid mesh")
 }
 
-#[test]
-fn flat_square_first_collapse_is_the_centre_onto_the_lowest_midpoint() {
-    // 6---7---8      y
-    // | \ | / |      ^
-    // 3---4---5      |
-    // | / | \ |      +--> x
-    // 0---1---2
-    //
-    // Everything is coplanar, so a collapse that keeps the outline (the centre anywhere, a
-    // midpoint along its border edge) costs only the regularization, 1e-7 times its squared
-    // length, times the vertex's (weight / mean weight)^0.25 (the weight exponent); moving a
-    // corner cuts the outline and costs far more. The centre is the lightest vertex (8 unit triangles; every border vertex
-    // also carries border planes, weighted 10 per edge), and its shortest edges are those to
-    // the midpoints: 4 -> 1, 4 -> 3, 4 -> 5 and 4 -> 7 tie, every target weighs the same,
-    // and the smallest index wins. That removes (0, 1, 4) and (1, 2, 4) and moves the other
-    // six triangles' centre corner to 1, in place.
+/// A flat 2 x 2 square of unit cells, fanned around its centre:
+///
+/// ```text
+/// 6---7---8      y
+/// | \ | / |      ^
+/// 3---4---5      |
+/// | / | \ |      +--> x
+/// 0---1---2
+/// ```
+fn flat_square() -> IndexedMesh {
     let positions = (0..9)
         .map(|i| Vec3::new((i % 3) as f32, (i / 3) as f32, 0.0))
         .collect();
     let indices = vec![
         0, 1, 4, 1, 2, 4, 2, 5, 4, 5, 8, 4, 8, 7, 4, 7, 6, 4, 6, 3, 4, 3, 0, 4,
     ];
-    let mesh = IndexedMesh::new(positions, indices);
+    IndexedMesh::new(positions, indices)
+}
+
+#[test]
+fn flat_square_first_collapse_is_the_centre_onto_the_lowest_midpoint() {
+    // Everything is coplanar, so a collapse that keeps the outline (the centre anywhere, a
+    // midpoint along its border edge) costs only the regularization, 1e-7 times its squared
+    // length, times the vertex's (weight / mean weight)^0.25 (the weight exponent); moving a
+    // corner cuts the outline and costs far more. The centre is the lightest vertex (8 unit
+    // triangles; every border vertex also carries border planes, weighted 10 per edge), and
+    // its shortest edges are those to the midpoints: 4 -> 1, 4 -> 3, 4 -> 5 and 4 -> 7 tie, every target weighs the same,
+    // and the smallest index wins. That removes (0, 1, 4) and (1, 2, 4) and moves the other
+    // six triangles' centre corner to 1, in place.
+    let mesh = flat_square();
     let pm = build(&mesh);
     let mut cache = PolygonCache::new(&pm);
     assert!(cache.coarsen(&pm));
@@ -77,19 +84,13 @@ fn flat_square_first_collapse_is_the_centre_onto_the_lowest_midpoint() {
 
 #[test]
 fn the_error_table_records_unscaled_errors() {
-    // The flat square above: its first collapse is the centre onto a midpoint with the weight
+    // The flat square: its first collapse is the centre onto a midpoint with the weight
     // exponent (the centre is the lightest vertex) and a border midpoint onto a corner
     // without. Both move a vertex by 1 on a flat face, so both cost only the regularization,
     // 1e-7 x 1², and the table records sqrt(1e-7) over the diagonal, sqrt(8), whatever the
     // exponent; the ranking cost of the centre's move is (8 / 20.4)^exponent times that
     // (0.39 with exponent 1; its weight is 8 unit triangles, the mean 20.4).
-    let positions = (0..9)
-        .map(|i| Vec3::new((i % 3) as f32, (i / 3) as f32, 0.0))
-        .collect();
-    let indices = vec![
-        0, 1, 4, 1, 2, 4, 2, 5, 4, 5, 8, 4, 8, 7, 4, 7, 6, 4, 6, 3, 4, 3, 0, 4,
-    ];
-    let mesh = IndexedMesh::new(positions, indices);
+    let mesh = flat_square();
     let expected = (1e-7f32).sqrt() / 8f32.sqrt();
     for weight_exponent in [0.0, 0.25, 1.0] {
         let options = BuildOptions {

@@ -1610,19 +1610,29 @@ mod tests {
         .unwrap();
     }
 
+    /// A 12 x 12 grid with bumps of up to 0.4 and an open border.
+    fn bumpy_grid() -> IndexedMesh {
+        test_grid(12, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1)
+    }
+
+    /// Every recorded move of the whole build of [`bumpy_grid`] with `options`.
+    fn grid_moves(options: &BuildOptions) -> Vec<(u32, u32, u32)> {
+        let grid = bumpy_grid();
+        let n = grid.triangle_count();
+        build(&grid, options, &Constraints::default(), n, &mut |_, _| {})
+            .unwrap()
+            .moves
+    }
+
     /// Exponents outside 0..=1 are clamped, NaN counts as 0.
     #[test]
     fn weight_exponents_outside_zero_to_one_are_clamped() {
-        let grid = test_grid(12, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
-        let n = grid.triangle_count();
+        let grid = bumpy_grid();
         let moves = |weight_exponent: f64| {
-            let options = BuildOptions {
+            grid_moves(&BuildOptions {
                 weight_exponent,
                 ..BuildOptions::default()
-            };
-            build(&grid, &options, &Constraints::default(), n, &mut |_, _| {})
-                .unwrap()
-                .moves
+            })
         };
         assert_eq!(moves(-1.0), moves(0.0));
         assert_eq!(moves(f64::NAN), moves(0.0));
@@ -1690,16 +1700,11 @@ mod tests {
     /// others, which the re-ranking relies on never happening): the same sequence as 0.
     #[test]
     fn negative_border_weights_count_as_zero() {
-        let grid = test_grid(12, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
-        let n = grid.triangle_count();
         let moves = |border_weight: f64| {
-            let options = BuildOptions {
+            grid_moves(&BuildOptions {
                 border_weight,
                 ..BuildOptions::default()
-            };
-            build(&grid, &options, &Constraints::default(), n, &mut |_, _| {})
-                .unwrap()
-                .moves
+            })
         };
         assert_eq!(moves(-10.0), moves(0.0));
         assert_eq!(moves(f64::NAN), moves(0.0));
