@@ -5,7 +5,8 @@ use bevy::diagnostic::DiagnosticsStore;
 use bevy::prelude::*;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodViewport, CountInBudget, LodPriority, LodRegion,
-    MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec, PolygonBudget, diagnostics,
+    MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec, PolygonBudget, RegionUpload,
+    diagnostics,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use glam::Vec3;
@@ -200,6 +201,64 @@ fn changing_a_models_material_changes_its_regions() {
     assert!(now.iter().all(|m| *m == Some(blue.id())), "{now:?}");
 }
 
+/// A material extension with nothing of its own: enough for a second material type.
+#[derive(Asset, bevy::render::render_resource::AsBindGroup, Reflect, Clone, Default)]
+struct Plain {}
+
+impl bevy::pbr::MaterialExtension for Plain {}
+
+type Extended = bevy::pbr::ExtendedMaterial<StandardMaterial, Plain>;
+
+#[test]
+fn regions_inherit_any_material_with_a_material_plugin() {
+    let mut app = app(1_000);
+    app.init_asset::<Extended>()
+        .add_plugins(bevy_aslod::plugin::MultiresMaterialPlugin::<Extended>::default());
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let material = app
+        .world_mut()
+        .resource_mut::<Assets<Extended>>()
+        .add(Extended::default());
+    let model = app
+        .world_mut()
+        .spawn((
+            MultiresModel(handle),
+            MeshMaterial3d(material.clone()),
+            Transform::default(),
+        ))
+        .id();
+    app.update();
+    app.update();
+    let regions: Vec<Entity> = app
+        .world()
+        .get::<MultiresInstance>(model)
+        .unwrap()
+        .region_entities()
+        .to_vec();
+    assert_eq!(regions.len(), 4);
+    for &r in &regions {
+        let m = app.world().get::<MeshMaterial3d<Extended>>(r);
+        assert_eq!(m.map(|m| m.id()), Some(material.id()), "region {r}");
+        assert!(
+            app.world()
+                .get::<MeshMaterial3d<StandardMaterial>>(r)
+                .is_none()
+        );
+    }
+    // Taking the material away takes it from the regions too.
+    app.world_mut()
+        .entity_mut(model)
+        .remove::<MeshMaterial3d<Extended>>();
+    app.update();
+    for &r in &regions {
+        assert!(
+            app.world().get::<MeshMaterial3d<Extended>>(r).is_none(),
+            "region {r}"
+        );
+    }
+}
+
 #[test]
 fn uploaded_indices_match_the_caches() {
     let mut app = app(1_000);
@@ -236,6 +295,78 @@ fn uploaded_indices_match_the_caches() {
             "region {r}: the mesh holds other indices than the cache"
         );
     }
+}
+
+/// `AssetEvent::Modified` events of `Mesh` assets seen so far.
+#[derive(Resource, Default)]
+struct ModifiedMeshes(usize);
+
+fn count_modified(mut events: MessageReader<AssetEvent<Mesh>>, mut seen: ResMut<ModifiedMeshes>) {
+    seen.0 += events
+        .read()
+        .filter(|e| matches!(e, AssetEvent::Modified { .. }))
+        .count();
+}
+
+/// Level changes over a camera that closes in: regions changed, and mesh change events seen.
+fn level_changes(mode: RegionUpload) -> (usize, usize) {
+    let mut app = app(3_000);
+    app.insert_resource(mode)
+        .init_resource::<ModifiedMeshes>()
+        .add_systems(Last, count_modified);
+    let handle = add_asset(&mut app);
+    let camera = spawn_camera(&mut app, Vec3::new(0.0, 40.0, 80.0));
+    spawn_model(&mut app, &handle, Vec3::ZERO);
+    spawn_model(&mut app, &handle, Vec3::new(20.0, 0.0, 0.0));
+    let mut changed = 0;
+    for step in 0..12 {
+        let at = Vec3::new(0.0, 40.0, 80.0) * (1.0 - step as f32 / 14.0);
+        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+            Transform::from_translation(at).looking_at(Vec3::ZERO, Vec3::Y);
+        app.update();
+        changed += stats(&app).regions_changed;
+    }
+    (changed, app.world().resource::<ModifiedMeshes>().0)
+}
+
+#[test]
+fn level_changes_leave_the_mesh_assets_unmodified() {
+    // Indices only: the meshes change without a change event, so Bevy does not re-extract
+    // and re-upload their vertices.
+    let (changed, modified) = level_changes(RegionUpload::IndicesOnly);
+    assert!(changed >= 8, "levels changed {changed} times");
+    assert_eq!(
+        modified, 0,
+        "{modified} mesh change events for {changed} level changes"
+    );
+    // The whole-mesh path raises one per change: the count above is what it looks for.
+    let (changed, modified) = level_changes(RegionUpload::WholeMesh);
+    assert!(changed >= 8, "levels changed {changed} times");
+    assert!(
+        modified >= changed,
+        "{modified} events for {changed} changes"
+    );
+}
+
+#[test]
+fn region_entities_keep_the_box_of_their_mesh() {
+    let mut app = app(1_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    spawn_model(&mut app, &handle, Vec3::ZERO);
+    for _ in 0..3 {
+        app.update();
+    }
+    let world = app.world_mut();
+    let mut regions = world.query::<(&Mesh3d, &bevy::camera::primitives::Aabb)>();
+    let mut n = 0;
+    for (mesh, aabb) in regions.iter(world) {
+        let mesh = world.resource::<Assets<Mesh>>().get(&mesh.0).unwrap();
+        use bevy::camera::primitives::MeshAabb;
+        assert_eq!(Some(*aabb), mesh.compute_aabb());
+        n += 1;
+    }
+    assert_eq!(n, 4, "every region has its box");
 }
 
 #[test]

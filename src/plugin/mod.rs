@@ -1,12 +1,15 @@
 //! The Bevy plugin: multiresolution models under one polygon budget (feature `bevy`).
 //!
 //! Mark an entity with [`MultiresModel`] (a handle to a [`MultiresMesh`] asset) next to a
-//! `MeshMaterial3d<StandardMaterial>` and a `Transform`. The plugin gives it one child per
+//! `MeshMaterial3d<StandardMaterial>` (or another material with a [`MultiresMaterialPlugin`])
+//! and a `Transform`. The plugin gives it one child per
 //! region, each with its own `Mesh3d` (owned by the plugin), the model's material and a
 //! [`LodRegion`], and keeps the instance's levels of detail in a [`MultiresInstance`] on the
 //! model. Every frame it splits [`PolygonBudget::total`] among all regions of all models in
 //! view (ASLOD's runtime loop, section 5.4) and rewrites the index buffers of the regions
-//! whose level changed.
+//! whose level changed. A level change reaches the GPU as that region's index data alone
+//! (a skinned region's blended vertices as well): the plugin writes it into Bevy's mesh
+//! buffers itself instead of having Bevy re-upload the whole mesh ([`RegionUpload`]).
 //!
 //! | component / resource | on | meaning |
 //! |---|---|---|
@@ -17,6 +20,9 @@
 //! | [`AslodViewport`] | resource (optional) | viewport size for cameras without a known one |
 //! | [`AslodOverlay`] | resource | draws every region's world box with gizmos |
 //! | [`AslodStats`] | resource | what the last frame did (also as diagnostics) |
+//! | [`RegionUpload`] | resource | how level changes reach the renderer; default indices only |
+//! | [`RegionUploadStats`] | render-world resource | bytes the plugin wrote to the GPU last frame |
+//! | [`MultiresMaterialPlugin<M>`] | plugin | regions take the model's `MeshMaterial3d<M>` |
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -47,12 +53,14 @@
 
 mod asset;
 mod overlay;
+mod render;
 mod scene;
 mod skin;
 mod systems;
 
 pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
+pub use render::{RegionUpload, RegionUploadStats};
 pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
 pub use skin::{MultiresSkin, SkinBinding};
 
@@ -74,7 +82,10 @@ use std::sync::Arc;
 /// | [`AslodSystems::Deform`] | after `SelectLod` | blends the cached vertices of skinned regions whose joints moved or whose cache changed |
 /// | [`AslodSystems::Upload`] | after `Deform` | rewrites the index buffers (and blended vertices) of changed regions |
 ///
-/// Everything runs before the renderer extracts meshes. An observer removes a model's region
+/// Everything runs before the renderer extracts meshes. With a render sub-app, one extract
+/// system takes the new index and vertex bytes to the render world, and one system in
+/// `RenderSystems::PrepareAssets` (after Bevy's mesh allocation and preparation) writes them
+/// into the mesh allocator's buffers ([`RegionUpload`]). An observer removes a model's region
 /// meshes from `Assets<Mesh>` when its [`MultiresInstance`] goes away (despawn). With
 /// `GizmoPlugin` present, a debug system draws region boxes while [`AslodOverlay`] is on.
 ///
@@ -123,6 +134,9 @@ impl Plugin for AslodPlugin {
         app.init_asset::<MultiresMesh>()
             .register_type::<PolygonBudget>()
             .register_type::<FullDetail>()
+            .register_type::<RegionUpload>()
+            .init_resource::<RegionUpload>()
+            .init_resource::<render::RenderWrites>()
             .insert_resource(self.budget.clone())
             .insert_resource(AslodOverlay(self.overlay))
             .init_resource::<FullDetail>()
@@ -132,10 +146,58 @@ impl Plugin for AslodPlugin {
             .add_observer(systems::remove_region_meshes);
         diagnostics::register(app);
         systems::configure(app);
+        if !app.is_plugin_added::<MultiresMaterialPlugin<StandardMaterial>>() {
+            app.add_plugins(MultiresMaterialPlugin::<StandardMaterial>::default());
+        }
     }
 
     fn finish(&self, app: &mut App) {
         overlay::add_if_gizmos(app);
+        render::finish(app);
+    }
+}
+
+/// Gives the regions of every [`MultiresModel`] the model's `MeshMaterial3d<M>`, and keeps them
+/// following it when it changes or is removed, like Bevy's `MaterialPlugin<M>` for a
+/// material type. [`AslodPlugin`] adds it for `StandardMaterial`; add one for each other
+/// material a multiresolution model uses (an `ExtendedMaterial`, your own `Material`).
+///
+/// ```
+/// use bevy::pbr::{ExtendedMaterial, MaterialExtension};
+/// use bevy::prelude::*;
+/// use bevy::render::render_resource::AsBindGroup;
+/// use bevy_aslod::plugin::{AslodPlugin, MultiresMaterialPlugin};
+///
+/// #[derive(Asset, AsBindGroup, Reflect, Clone, Default)]
+/// struct Outline {}
+/// impl MaterialExtension for Outline {}
+///
+/// type Outlined = ExtendedMaterial<StandardMaterial, Outline>;
+///
+/// let mut app = App::new();
+/// app.add_plugins((MinimalPlugins, AssetPlugin::default()))
+///     .init_asset::<Mesh>()
+///     .init_asset::<Outlined>()
+///     .add_plugins((AslodPlugin::default(), MultiresMaterialPlugin::<Outlined>::default()));
+/// app.update();
+/// ```
+pub struct MultiresMaterialPlugin<M: Material>(std::marker::PhantomData<fn() -> M>);
+
+impl<M: Material> Default for MultiresMaterialPlugin<M> {
+    fn default() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+impl<M: Material> Plugin for MultiresMaterialPlugin<M> {
+    fn build(&self, app: &mut App) {
+        app.add_systems(
+            PostUpdate,
+            systems::propagate_materials::<M>
+                .in_set(AslodSystems::Spawn)
+                .in_set(systems::MaterialSystems)
+                .after(systems::spawn_regions),
+        );
     }
 }
 
@@ -154,7 +216,8 @@ pub enum AslodSystems {
     SelectLod,
     /// Blends the cached vertices of skinned regions. After `SelectLod`.
     Deform,
-    /// Writes the index buffers of changed regions into their meshes. After `Deform`.
+    /// Writes the index buffers of changed regions into their meshes and queues the new
+    /// bytes for the renderer ([`RegionUpload`]). After `Deform`.
     Upload,
 }
 
@@ -224,7 +287,8 @@ impl Default for LodPriority {
 }
 
 /// A multiresolution model: the plugin gives this entity one child per region of the mesh.
-/// Put it next to a `MeshMaterial3d<StandardMaterial>` and a `Transform`.
+/// Put it next to a `MeshMaterial3d<StandardMaterial>` (or of another material with a
+/// [`MultiresMaterialPlugin`]) and a `Transform`.
 ///
 /// The children are made once, when the asset is loaded, with the material the model has
 /// then; changing the handle or the material later does not rebuild them: despawn the model
@@ -387,6 +451,10 @@ pub struct AslodStats {
     pub vertices_blended: usize,
     /// Regions whose index buffer was rewritten.
     pub regions_changed: usize,
+    /// Bytes of region mesh data handed to the renderer in `Upload`: the new index buffers
+    /// and blended vertex runs ([`RegionUpload::IndicesOnly`], `0` without a render sub-app),
+    /// or every changed mesh's whole vertex and index data ([`RegionUpload::WholeMesh`]).
+    pub upload_bytes: u64,
 }
 
 /// Diagnostic paths the plugin registers with Bevy's `DiagnosticsStore`.

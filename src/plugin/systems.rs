@@ -1,5 +1,6 @@
 //! The plugin's systems, one per step of the runtime loop.
 
+use super::render::{self, RegionUpload, RenderWrites};
 use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
 use super::{
     AslodStats, AslodSystems, AslodViewport, CountInBudget, FullDetail, LodPriority, LodRegion,
@@ -9,7 +10,9 @@ use crate::bevy_mesh::to_bevy_mesh;
 use crate::budget::{Allocator, Executor, Obb, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
-use bevy::camera::visibility::NoFrustumCulling;
+use bevy::asset::AssetId;
+use bevy::camera::primitives::{Aabb, MeshAabb};
+use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::system::NonSendMarker;
 use bevy::mesh::Indices;
@@ -18,6 +21,11 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::tasks::{ComputeTaskPool, ParallelSliceMut, TaskPool};
 use bevy::transform::TransformSystems;
+
+/// Where every [`MultiresMaterialPlugin`](super::MultiresMaterialPlugin) copies its model
+/// materials to the regions: in [`AslodSystems::Spawn`], after the regions are made.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) struct MaterialSystems;
 
 /// Runs `f` over `items` in chunks on the compute task pool and returns its results, one per
 /// chunk. There are enough chunks for every compute thread and for the calling thread too:
@@ -61,61 +69,57 @@ pub(crate) struct AslodScratch {
 }
 
 pub(super) fn configure(app: &mut App) {
-    app.configure_sets(
-        PostUpdate,
-        AslodSystems::Spawn.before(TransformSystems::Propagate),
-    )
-    .configure_sets(
-        PostUpdate,
-        (
-            AslodSystems::Allocate,
-            AslodSystems::SelectLod,
-            AslodSystems::Deform,
-            AslodSystems::Upload,
+    app.init_resource::<MaterialsGiven>()
+        .configure_sets(
+            PostUpdate,
+            AslodSystems::Spawn.before(TransformSystems::Propagate),
         )
-            .chain()
-            .after(TransformSystems::Propagate)
-            .after(bevy::camera::CameraUpdateSystems),
-    )
-    .add_systems(
-        PostUpdate,
-        (
+        .configure_sets(
+            PostUpdate,
             (
-                super::scene::convert_scenes,
-                rebuild_modified,
-                spawn_regions,
-                propagate_materials,
+                AslodSystems::Allocate,
+                AslodSystems::SelectLod,
+                AslodSystems::Deform,
+                AslodSystems::Upload,
             )
                 .chain()
-                .in_set(AslodSystems::Spawn),
-            (update_skins, allocate)
-                .chain()
-                .in_set(AslodSystems::Allocate),
-            select_lod.in_set(AslodSystems::SelectLod),
-            deform.in_set(AslodSystems::Deform),
-            upload.in_set(AslodSystems::Upload),
-        ),
-    );
+                .after(TransformSystems::Propagate)
+                .after(bevy::camera::CameraUpdateSystems),
+        )
+        .add_systems(
+            PostUpdate,
+            (
+                (
+                    super::scene::convert_scenes,
+                    rebuild_modified,
+                    spawn_regions,
+                )
+                    .chain()
+                    .in_set(AslodSystems::Spawn),
+                warn_without_material
+                    .in_set(AslodSystems::Spawn)
+                    .after(spawn_regions)
+                    .after(MaterialSystems),
+                (update_skins, allocate)
+                    .chain()
+                    .in_set(AslodSystems::Allocate),
+                select_lod.in_set(AslodSystems::SelectLod),
+                deform.in_set(AslodSystems::Deform),
+                upload.in_set(AslodSystems::Upload),
+            ),
+        );
 }
 
 /// Gives every new [`MultiresModel`] whose asset is loaded its region children. A skinned
 /// asset with a [`MultiresSkin`] puts each rigid region under its joint entity instead.
 #[allow(clippy::type_complexity)]
-fn spawn_regions(
+pub(super) fn spawn_regions(
     mut commands: Commands,
-    models: Query<
-        (
-            Entity,
-            &MultiresModel,
-            Option<&MeshMaterial3d<StandardMaterial>>,
-            Option<&MultiresSkin>,
-        ),
-        Without<MultiresInstance>,
-    >,
+    models: Query<(Entity, &MultiresModel, Option<&MultiresSkin>), Without<MultiresInstance>>,
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
 ) {
-    for (entity, model, material, joints) in &models {
+    for (entity, model, joints) in &models {
         let Some(asset) = assets.get(&model.0) else {
             continue; // not loaded yet
         };
@@ -163,35 +167,39 @@ fn spawn_regions(
                 },
                 _ => (region.progressive_mesh().vertices().clone(), entity, false),
             };
-            // Empty until `Upload` writes the first level.
-            let handle = meshes.add(to_bevy_mesh(
+            // One degenerate triangle, in the width the levels use, until `Upload` writes the
+            // first level: the renderer gives the mesh its index allocation from the start.
+            let mut bevy_mesh = to_bevy_mesh(
                 &crate::mesh::IndexedMesh {
                     joints: None,
                     weights: None,
                     ..mesh
                 },
                 &[],
-            ));
+            );
+            bevy_mesh.insert_indices(if region.fits_u16() {
+                Indices::U16(vec![0; 3])
+            } else {
+                Indices::U32(vec![0; 3])
+            });
+            // The box of every vertex, as Bevy would compute it; the plugin keeps it, since
+            // level changes do not go through the asset's change events.
+            let aabb = bevy_mesh.compute_aabb().unwrap_or_default();
+            let handle = meshes.add(bevy_mesh);
             let mut child = commands.spawn((
                 Mesh3d(handle.clone()),
                 LodRegion { region: r },
                 Transform::default(),
                 ChildOf(parent),
+                aabb,
+                NoAutoAabb,
             ));
-            if let Some(material) = material {
-                child.insert(material.clone());
-            }
             if state.is_some() && !rigid {
                 // Its vertices move every frame: Bevy's box from the bind pose is stale.
                 child.insert(NoFrustumCulling);
             }
             region_entities.push(child.id());
             handles.push(handle);
-        }
-        if material.is_none() {
-            warn!(
-                "MultiresModel {entity} has no MeshMaterial3d<StandardMaterial>: its regions will not render"
-            );
         }
         let targets = regions
             .regions()
@@ -222,20 +230,28 @@ fn spawn_regions(
     }
 }
 
-/// A model's material changed (or was removed): its regions follow. Changes to the material
-/// asset itself need nothing, the regions share its handle.
+/// The models whose regions took a material this frame (from any
+/// [`MultiresMaterialPlugin`](super::MultiresMaterialPlugin)).
+#[derive(Resource, Default)]
+pub(super) struct MaterialsGiven(Vec<Entity>);
+
+/// A model's `MeshMaterial3d<M>` was added, changed or removed, or its regions were just
+/// made: its regions follow. Changes to the material asset itself need nothing, the regions
+/// share its handle.
 #[allow(clippy::type_complexity)]
-fn propagate_materials(
+pub(super) fn propagate_materials<M: Material>(
     mut commands: Commands,
     changed: Query<
-        (&MultiresInstance, &MeshMaterial3d<StandardMaterial>),
-        Changed<MeshMaterial3d<StandardMaterial>>,
+        (Entity, &MultiresInstance, &MeshMaterial3d<M>),
+        Or<(Changed<MeshMaterial3d<M>>, Added<MultiresInstance>)>,
     >,
     // Removed and not given back (in the same frame) by the time this runs.
-    instances: Query<&MultiresInstance, Without<MeshMaterial3d<StandardMaterial>>>,
-    mut removed: RemovedComponents<MeshMaterial3d<StandardMaterial>>,
+    instances: Query<&MultiresInstance, Without<MeshMaterial3d<M>>>,
+    mut removed: RemovedComponents<MeshMaterial3d<M>>,
+    mut given: ResMut<MaterialsGiven>,
 ) {
-    for (instance, material) in &changed {
+    for (model, instance, material) in &changed {
+        given.0.push(model);
         for &region in &instance.region_entities {
             if let Ok(mut region) = commands.get_entity(region) {
                 region.try_insert(material.clone());
@@ -249,10 +265,25 @@ fn propagate_materials(
         };
         for &region in &instance.region_entities {
             if let Ok(mut region) = commands.get_entity(region) {
-                region.try_remove::<MeshMaterial3d<StandardMaterial>>();
+                region.try_remove::<MeshMaterial3d<M>>();
             }
         }
     }
+}
+
+/// Warns about new models none of whose materials reached their regions.
+pub(super) fn warn_without_material(
+    new: Query<Entity, Added<MultiresInstance>>,
+    mut given: ResMut<MaterialsGiven>,
+) {
+    for model in &new {
+        if !given.0.contains(&model) {
+            warn!(
+                "MultiresModel {model} has no MeshMaterial3d of a material with a MultiresMaterialPlugin (StandardMaterial has one): its regions will not render"
+            );
+        }
+    }
+    given.0.clear();
 }
 
 /// Hot reload: when a [`MultiresMesh`] changes, every model showing it loses its instance
@@ -694,9 +725,83 @@ fn empty_indices(narrow: bool) -> Indices {
     }
 }
 
+/// Where `Upload` writes: the meshes, how, the renderer's queue and the region boxes it marks
+/// changed (so Bevy rebuilds those instances' draw data from the new index slices).
+struct UploadTarget<'a, 'w, 's> {
+    meshes: &'a mut Assets<Mesh>,
+    direct: bool,
+    writes: &'a mut RenderWrites,
+    aabbs: &'a mut Query<'w, 's, &'static mut Aabb, With<LodRegion>>,
+    /// Bytes handed to the renderer this frame.
+    bytes: u64,
+}
+
+impl UploadTarget<'_, '_, '_> {
+    /// The region mesh to change: without a change event on the direct path (its bytes go to
+    /// the renderer through [`RenderWrites`]), with one on the whole-mesh path.
+    fn mesh(&mut self, id: AssetId<Mesh>) -> Option<&mut Mesh> {
+        if self.direct {
+            self.meshes.get_mut_untracked(id)
+        } else {
+            self.meshes
+                .get_mut(id)
+                .map(bevy::asset::AssetMut::into_inner)
+        }
+    }
+
+    /// After a region mesh's index buffer changed: queue it and mark the region's box changed
+    /// (direct), or count what Bevy re-uploads (whole mesh).
+    fn indices_changed(&mut self, id: AssetId<Mesh>, entity: Entity) {
+        let Some(mesh) = self.meshes.get(id) else {
+            return;
+        };
+        if !self.direct {
+            self.bytes += render::whole_mesh_bytes(mesh);
+            return;
+        }
+        if let Ok(mut aabb) = self.aabbs.get_mut(entity) {
+            aabb.set_changed();
+        }
+        if self.writes.enabled
+            && let Some(indices) = mesh.indices()
+        {
+            self.bytes += indices.len() as u64
+                * if matches!(indices, Indices::U16(_)) {
+                    2
+                } else {
+                    4
+                };
+            self.writes.indices(id, indices);
+        }
+    }
+
+    /// After a skinned region's vertices `written` were blended into its mesh: queue the run
+    /// from the lowest to the highest (direct), or count what Bevy re-uploads (whole mesh,
+    /// unless its indices changed too and were counted already).
+    fn vertices_changed(&mut self, id: AssetId<Mesh>, written: &[u32], counted: bool) {
+        let Some(mesh) = self.meshes.get(id) else {
+            return;
+        };
+        if !self.direct {
+            if !counted {
+                self.bytes += render::whole_mesh_bytes(mesh);
+            }
+            return;
+        }
+        let (Some(&lo), Some(&hi)) = (written.iter().min(), written.iter().max()) else {
+            return;
+        };
+        if self.writes.enabled {
+            let before = self.writes.queued_bytes();
+            self.writes.vertices(id, mesh, lo, hi);
+            self.bytes += (self.writes.queued_bytes() - before) as u64;
+        }
+    }
+}
+
 /// Writes what `Deform` produced for one skinned instance into its region meshes: index
 /// buffers that changed, and the vertices blended this frame (only those).
-fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) -> usize {
+fn upload_skinned(instance: &mut MultiresInstance, target: &mut UploadTarget) -> usize {
     let Some(skin) = &mut instance.skin else {
         return 0;
     };
@@ -705,11 +810,15 @@ fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) ->
         if !state.indices_changed && state.written.is_empty() {
             continue;
         }
-        if let Some(mut mesh) = instance.mesh_ids.get(r).and_then(|&id| meshes.get_mut(id)) {
+        let (Some(&id), Some(&entity)) =
+            (instance.mesh_ids.get(r), instance.region_entities.get(r))
+        else {
+            continue;
+        };
+        let mut swapped = false;
+        if let Some(mesh) = target.mesh(id) {
             // `state.indices` is rewritten whole before it is read again.
-            if state.indices_changed && swap_indices(&mut mesh, &mut state.indices) {
-                changed += 1;
-            }
+            swapped = state.indices_changed && swap_indices(mesh, &mut state.indices);
             if !state.written.is_empty() {
                 // Swap the buffers (see `RegionSkin::positions`): no copy.
                 let normals = state.has_normals.then_some(&mut state.normals);
@@ -732,6 +841,13 @@ fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) ->
                 }
             }
         }
+        if swapped {
+            changed += 1;
+            target.indices_changed(id, entity);
+        }
+        if !state.written.is_empty() {
+            target.vertices_changed(id, &state.written, swapped);
+        }
         state.indices_changed = false;
         state.written.clear();
     }
@@ -739,18 +855,31 @@ fn upload_skinned(instance: &mut MultiresInstance, meshes: &mut Assets<Mesh>) ->
 }
 
 /// `Upload`: swap in the index buffers `SelectLod` wrote for dirty regions, write what
-/// `Deform` produced for skinned ones, and nothing else.
+/// `Deform` produced for skinned ones, and nothing else. On the direct path
+/// ([`RegionUpload::IndicesOnly`]) the meshes change without a change event and the new bytes
+/// go to the renderer on their own.
+#[allow(clippy::too_many_arguments)]
 fn upload(
     mut models: Query<&mut MultiresInstance>,
     mut meshes: ResMut<Assets<Mesh>>,
+    mode: Res<RegionUpload>,
+    mut writes: ResMut<RenderWrites>,
+    mut aabbs: Query<&'static mut Aabb, With<LodRegion>>,
     mut stats: ResMut<AslodStats>,
     mut diag: Diagnostics,
 ) {
     let start = Instant::now();
     let mut changed = 0;
+    let mut target = UploadTarget {
+        meshes: &mut meshes,
+        direct: *mode == RegionUpload::IndicesOnly,
+        writes: &mut writes,
+        aabbs: &mut aabbs,
+        bytes: 0,
+    };
     for mut instance in &mut models {
         let instance = &mut *instance;
-        changed += upload_skinned(instance, &mut meshes);
+        changed += upload_skinned(instance, &mut target);
         // Only the regions `SelectLod` wrote: their staging slots and meshes.
         for r in instance.ready.drain(..) {
             let r = r as usize;
@@ -758,15 +887,22 @@ fn upload(
             if !std::mem::take(ready) {
                 continue;
             }
-            // The mesh was removed by someone else: nothing to write.
-            let Some(mut mesh) = instance.mesh_ids.get(r).and_then(|&id| meshes.get_mut(id)) else {
+            let (Some(&id), Some(&entity)) =
+                (instance.mesh_ids.get(r), instance.region_entities.get(r))
+            else {
                 continue;
             };
-            if swap_staged(&mut mesh, buffer) {
+            // The mesh was removed by someone else: nothing to write.
+            let Some(mesh) = target.mesh(id) else {
+                continue;
+            };
+            if swap_staged(mesh, buffer) {
                 changed += 1;
+                target.indices_changed(id, entity);
             }
         }
     }
+    stats.upload_bytes = target.bytes;
     stats.regions_changed = changed;
     stats.upload_ms = start.elapsed().as_secs_f64() * 1e3;
     stats.update_ms += stats.upload_ms;

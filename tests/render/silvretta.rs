@@ -1,11 +1,8 @@
 //! Renders the `silvretta` example offscreen (Vulkan; lavapipe on machines without a GPU) and
 //! checks its screenshots and triangle counts. Skipped, with a message, only where no Vulkan
 //! driver is installed.
-#![cfg(feature = "bevy")]
 
-mod example_run;
-
-use example_run::{example_binary, require_vulkan, varied_fraction};
+use super::example_run::{example_binary, require_vulkan, varied_fraction};
 use std::path::Path;
 use std::process::Command;
 

@@ -1,11 +1,8 @@
 //! Runs the `aerobic_class` example offscreen for 30 frames (Vulkan; lavapipe on machines
 //! without a GPU) and checks its report: a non-blank screenshot, the charts, one CSV row per
 //! frame and a summary whose largest total is within the 5,000-triangle budget.
-#![cfg(feature = "bevy")]
 
-mod example_run;
-
-use example_run::{example_binary, require_vulkan, varied_fraction};
+use super::example_run::{example_binary, require_vulkan, varied_fraction};
 use std::path::Path;
 use std::process::Command;
 

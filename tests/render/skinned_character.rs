@@ -1,10 +1,7 @@
 //! Renders the `skinned_character` example offscreen (RobotExpressive dancing; Vulkan,
 //! lavapipe on machines without a GPU) and checks its screenshots and counts.
-#![cfg(feature = "bevy")]
 
-mod example_run;
-
-use example_run::{example_binary, require_vulkan, varied_fraction};
+use super::example_run::{example_binary, require_vulkan, varied_fraction};
 use std::path::Path;
 use std::process::Command;
 

@@ -1,0 +1,728 @@
+//! What a level change costs the renderer, with rendering on (Vulkan; lavapipe without a GPU).
+//!
+//! `render_cost [--frames N] [--scene grid|robots]`: the plugin bench's 1,000 patches × 16
+//! regions under P = 1,000,000 (or 100 dancing RobotExpressive characters under P = 100,000)
+//! rendered into a 32×18 image, so rasterising costs next to nothing. For each way of
+//! handing levels to the renderer ([`RegionUpload`]) it runs the camera path and a still
+//! camera, interleaved, and prints per frame (medians): the plugin's own systems, the render
+//! world's extraction, its mesh preparation (allocation, `RenderMesh`, the plugin's writes)
+//! and its mesh instance rebuild, the bytes of mesh data handed to the GPU, and the whole
+//! frame (pipelined rendering off, so `app.update()` includes the render world).
+//!
+//! `render_cost --check DIR [--cpu-building]`: the render test. Regions of three models change
+//! level over several frames under two cameras (one with a depth prepass, a shadow-casting
+//! light); then the models are replaced by plain meshes built fresh from the final levels and
+//! the two pairs of screenshots are compared. Writes the PNGs and `check.json` into DIR.
+//! `--cpu-building` turns Bevy's GPU mesh preprocessing off.
+
+#[allow(dead_code)]
+#[path = "../benches/common/scene.rs"]
+mod scene;
+
+use bevy::app::ScheduleRunnerPlugin;
+use bevy::camera::RenderTarget;
+use bevy::core_pipeline::prepass::DepthPrepass;
+use bevy::gltf::Gltf;
+use bevy::platform::time::Instant;
+use bevy::prelude::*;
+use bevy::render::RenderPlugin;
+use bevy::render::mesh::RenderMesh;
+use bevy::render::mesh::allocator::allocate_and_free_meshes;
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::render::render_asset::{AssetExtractionSystems, ExtractedAssets, RenderAsset};
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::settings::{RenderCreation, WgpuLimits, WgpuSettings, WgpuSettingsPriority};
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::render::{ExtractSchedule, Render, RenderApp, RenderSystems};
+use bevy::time::TimeUpdateStrategy;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::plugin::{
+    AslodPlugin, AslodStats, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
+    MultiresScene, MultiresSceneModels, PartitionSpec, PolygonBudget, RegionUpload,
+    RegionUploadStats,
+};
+use bevy_aslod::regions::{GridPlane, Partition};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+const ROBOTS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/testdata/characters");
+
+fn main() {
+    let mut frames = 60;
+    let mut scene = "grid".to_string();
+    let mut check = None;
+    let mut cpu_building = false;
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "--frames" => frames = args.next().and_then(|v| v.parse().ok()).unwrap_or(frames),
+            "--scene" => scene = args.next().unwrap_or(scene),
+            "--check" => check = args.next().map(PathBuf::from),
+            "--cpu-building" => cpu_building = true,
+            // `cargo bench` and `cargo test` pass flags of their own.
+            _ => {}
+        }
+    }
+    let result = match check {
+        Some(dir) => run_check(&dir, cpu_building),
+        None => run_bench(&scene, frames),
+    };
+    if let Err(e) = result {
+        eprintln!("render_cost: {e}");
+        std::process::exit(1);
+    }
+}
+
+/// `DefaultPlugins` without a window or pipelined rendering, and the plugin.
+fn render_app(cpu_building: bool, asset_root: Option<&str>) -> App {
+    let mut app = App::new();
+    let mut assets = AssetPlugin::default();
+    if let Some(root) = asset_root {
+        assets.file_path = root.into();
+    }
+    let plugins = DefaultPlugins
+        .set(assets)
+        .set(WindowPlugin {
+            primary_window: None,
+            exit_condition: ExitCondition::DontExit,
+            ..default()
+        })
+        .set(RenderPlugin {
+            // WebGL 2's limits (no compute) turn Bevy's GPU mesh preprocessing off, as on
+            // devices without it.
+            render_creation: RenderCreation::Automatic(Box::new(if cpu_building {
+                WgpuSettings {
+                    priority: WgpuSettingsPriority::WebGL2,
+                    limits: WgpuLimits::downlevel_webgl2_defaults(),
+                    ..default()
+                }
+            } else {
+                WgpuSettings::default()
+            })),
+            ..default()
+        })
+        .disable::<WinitPlugin>()
+        .disable::<PipelinedRenderingPlugin>();
+    app.add_plugins((plugins, ScheduleRunnerPlugin::run_once()))
+        .add_plugins(AslodPlugin::default())
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
+            1.0 / 60.0,
+        )));
+    add_render_timers(&mut app);
+    app.finish();
+    app.cleanup();
+    app
+}
+
+/// An offscreen colour target of `w`×`h` pixels.
+fn target(app: &mut App, w: u32, h: u32) -> Handle<Image> {
+    app.world_mut()
+        .resource_mut::<Assets<Image>>()
+        .add(Image::new_target_texture(
+            w,
+            h,
+            TextureFormat::Rgba8Unorm,
+            Some(TextureFormat::Rgba8UnormSrgb),
+        ))
+}
+
+// ---------------------------------------------------------------------------------------
+// Render-world timers.
+
+/// What the render world did for meshes in the last frame, measured by systems placed
+/// around Bevy's own (wall-clock time between them).
+#[derive(Resource, Clone, Copy, Debug, Default)]
+struct RenderCost {
+    /// `ExtractSchedule`, from before render-asset and mesh-instance extraction to after.
+    extract_ms: f64,
+    /// `PrepareAssets`: from before `allocate_and_free_meshes` to after
+    /// `prepare_assets::<RenderMesh>` and the plugin's writes.
+    prepare_ms: f64,
+    /// `PrepareMeshes`: the mesh instances' rebuild (`collect_meshes_for_gpu_building`).
+    instances_ms: f64,
+    /// Bytes of the meshes Bevy extracted this frame (vertices and indices, as
+    /// `RenderMesh::byte_len` counts them): what its allocator writes to the GPU.
+    bevy_bytes: u64,
+}
+
+#[derive(Resource, Default)]
+struct RenderClock {
+    extract: Option<Instant>,
+    prepare: Option<Instant>,
+    instances: Option<Instant>,
+    cost: RenderCost,
+}
+
+/// The last frame's [`RenderCost`], shared with the main world.
+#[derive(Resource, Clone, Default)]
+struct SharedCost(Arc<Mutex<RenderCost>>);
+
+fn add_render_timers(app: &mut App) {
+    let shared = SharedCost::default();
+    app.insert_resource(shared.clone());
+    let Some(render) = app.get_sub_app_mut(RenderApp) else {
+        return;
+    };
+    render
+        .insert_resource(shared)
+        .init_resource::<RenderClock>()
+        .add_systems(
+            ExtractSchedule,
+            (
+                (|mut c: ResMut<RenderClock>| c.extract = Some(Instant::now()))
+                    .before(AssetExtractionSystems)
+                    .before(bevy::pbr::MeshExtractionSystems),
+                (|mut c: ResMut<RenderClock>| {
+                    c.cost.extract_ms = c.extract.map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3)
+                })
+                    .after(AssetExtractionSystems)
+                    .after(bevy::pbr::MeshExtractionSystems),
+            ),
+        )
+        .add_systems(
+            Render,
+            (
+                (|mut c: ResMut<RenderClock>, extracted: Res<ExtractedAssets<RenderMesh>>| {
+                    c.prepare = Some(Instant::now());
+                    c.cost.bevy_bytes = extracted
+                        .extracted
+                        .iter()
+                        .filter_map(|(_, mesh)| RenderMesh::byte_len(mesh))
+                        .sum::<usize>() as u64;
+                })
+                .in_set(RenderSystems::PrepareAssets)
+                .before(allocate_and_free_meshes),
+                prepare_end
+                    .in_set(RenderSystems::PrepareMeshes)
+                    .before(bevy::pbr::collect_meshes_for_gpu_building),
+                instances_end
+                    .in_set(RenderSystems::PrepareMeshes)
+                    .after(prepare_end)
+                    .after(bevy::pbr::collect_meshes_for_gpu_building),
+            ),
+        );
+}
+
+/// Stops the prepare clock (the plugin's writes follow Bevy's mesh preparation, in
+/// `PrepareAssets`), starts the instances one.
+fn prepare_end(mut c: ResMut<RenderClock>) {
+    c.cost.prepare_ms = c.prepare.map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3);
+    c.instances = Some(Instant::now());
+}
+
+/// Stops the instances clock and publishes the frame's cost.
+fn instances_end(mut c: ResMut<RenderClock>, shared: Res<SharedCost>) {
+    c.cost.instances_ms = c.instances.map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3);
+    *shared.0.lock().expect("cost") = c.cost;
+}
+fn render_cost(app: &App) -> RenderCost {
+    *app.world().resource::<SharedCost>().0.lock().expect("cost")
+}
+
+fn upload_stats(app: &App) -> RegionUploadStats {
+    app.get_sub_app(RenderApp)
+        .and_then(|r| r.world().get_resource::<RegionUploadStats>().copied())
+        .unwrap_or_default()
+}
+
+// ---------------------------------------------------------------------------------------
+// The bench.
+
+/// One frame's figures.
+#[derive(Clone, Copy, Default)]
+struct Frame {
+    ours_ms: f64,
+    cost: RenderCost,
+    region_bytes: u64,
+    index_bytes: u64,
+    changed: usize,
+    frame_ms: f64,
+    triangles: u64,
+}
+
+fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
+    let (mut app, budget, camera, side) = match scene_name {
+        "grid" => grid_scene(),
+        "robots" => robot_scene()?,
+        other => return Err(format!("unknown scene {other:?} (grid or robots)")),
+    };
+    // Pipelines compile slowly on a software rasteriser: let them, and the levels, settle.
+    for _ in 0..120 {
+        app.update();
+    }
+    let modes = [RegionUpload::IndicesOnly, RegionUpload::WholeMesh];
+    let mut rows: Vec<(RegionUpload, bool, Vec<Frame>)> = Vec::new();
+    for mode in modes {
+        for still in [false, true] {
+            rows.push((mode, still, Vec::new()));
+        }
+    }
+    // Interleaved rounds, so a slow phase of the machine hits every row.
+    let rounds = 3;
+    for _ in 0..rounds {
+        for row in &mut rows {
+            let (mode, still, out) = (row.0, row.1, &mut row.2);
+            *app.world_mut().resource_mut::<RegionUpload>() = mode;
+            for frame in 0..10 + frames {
+                let t = if still {
+                    0.5
+                } else {
+                    frame as f32 / (10 + frames) as f32
+                };
+                if let Some(side) = side {
+                    let (eye, at) = scene::camera(t, side);
+                    *app.world_mut()
+                        .get_mut::<Transform>(camera)
+                        .ok_or("no camera")? =
+                        Transform::from_translation(eye).looking_at(at, Vec3::Y);
+                }
+                let start = Instant::now();
+                app.update();
+                let frame_ms = start.elapsed().as_secs_f64() * 1e3;
+                if frame < 10 {
+                    continue;
+                }
+                let stats = *app.world().resource::<AslodStats>();
+                let up = upload_stats(&app);
+                out.push(Frame {
+                    ours_ms: stats.allocation_ms + stats.update_ms + stats.deform_ms,
+                    cost: render_cost(&app),
+                    region_bytes: up.index_bytes + up.vertex_bytes,
+                    index_bytes: up.index_bytes,
+                    changed: stats.regions_changed,
+                    frame_ms,
+                    triangles: stats.triangles,
+                });
+            }
+        }
+    }
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    println!(
+        "render_cost {scene_name}: P = {budget}, 32x18 target, {frames} frames x {rounds} rounds per row, {} build, {cpu}, {} cores",
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        },
+        std::thread::available_parallelism().map_or(0, usize::from)
+    );
+    println!(
+        "| upload | camera | ours ms | extract ms | prepare ms | instances ms | render world ms | mesh bytes to GPU | of which index bytes of changed regions | regions changed | frame ms | triangles |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for (mode, still, frames) in &rows {
+        let med = |f: &dyn Fn(&Frame) -> f64| {
+            let mut v: Vec<f64> = frames.iter().map(f).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        println!(
+            "| {mode:?} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.1} | {:.0} |",
+            if *still { "still" } else { "moving" },
+            med(&|f| f.ours_ms),
+            med(&|f| f.cost.extract_ms),
+            med(&|f| f.cost.prepare_ms),
+            med(&|f| f.cost.instances_ms),
+            med(&|f| f.cost.extract_ms + f.cost.prepare_ms + f.cost.instances_ms),
+            med(&|f| (f.cost.bevy_bytes + f.region_bytes) as f64),
+            med(&|f| f.index_bytes as f64),
+            med(&|f| f.changed as f64),
+            med(&|f| f.frame_ms),
+            med(&|f| f.triangles as f64),
+        );
+    }
+    Ok(())
+}
+
+/// The plugin bench's scene: 1,000 bumpy patches in 4×4 regions under P = 1,000,000.
+fn grid_scene() -> (App, u32, Entity, Option<usize>) {
+    const MODELS: usize = 1_000;
+    const BUDGET: u32 = 1_000_000;
+    let mut app = render_app(false, None);
+    app.world_mut().resource_mut::<PolygonBudget>().total = BUDGET;
+    let mesh = scene::patch(33);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
+    let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(asset);
+    let material = app
+        .world_mut()
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::default());
+    let side = scene::side(MODELS);
+    for i in 0..MODELS {
+        app.world_mut().spawn((
+            MultiresModel(handle.clone()),
+            MeshMaterial3d(material.clone()),
+            Transform::from_translation(scene::model_position(i, side)),
+        ));
+    }
+    let image = target(&mut app, 32, 18);
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            RenderTarget::Image(image.into()),
+            Transform::default(),
+        ))
+        .id();
+    app.world_mut().spawn((
+        DirectionalLight::default(),
+        Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    (app, BUDGET, camera, Some(side))
+}
+
+/// 100 RobotExpressive characters dancing out of phase under P = 100,000 (skinned regions:
+/// `Deform` blends their vertices every frame).
+fn robot_scene() -> Result<(App, u32, Entity, Option<usize>), String> {
+    const COUNT: usize = 100;
+    const BUDGET: u32 = 100_000;
+    const ROBOT: &str = "RobotExpressive.glb";
+    let mut app = render_app(false, Some(ROBOTS));
+    app.world_mut().resource_mut::<PolygonBudget>().total = BUDGET;
+    let gltf: Handle<Gltf> = app.world().resource::<AssetServer>().load(ROBOT);
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset(ROBOT));
+    let roots: Vec<Entity> = (0..COUNT)
+        .map(|i| {
+            let (x, z) = ((i % 10) as f32 * 5.0 - 22.5, (i / 10) as f32 * 5.0 - 22.5);
+            app.world_mut()
+                .spawn((
+                    WorldAssetRoot(scene.clone()),
+                    MultiresScene::default(),
+                    Transform::from_xyz(x, 0.0, z),
+                ))
+                .id()
+        })
+        .collect();
+    let image = target(&mut app, 32, 18);
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            RenderTarget::Image(image.into()),
+            Transform::from_xyz(0.0, 30.0, 60.0).looking_at(Vec3::ZERO, Vec3::Y),
+        ))
+        .id();
+    app.world_mut().spawn((
+        DirectionalLight::default(),
+        Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    for _ in 0..20_000 {
+        app.update();
+        let converted = roots
+            .iter()
+            .all(|&r| app.world().get::<MultiresSceneModels>(r).is_some());
+        let clip = app
+            .world()
+            .resource::<Assets<Gltf>>()
+            .get(&gltf)
+            .and_then(|g| g.named_animations.get("Dance").cloned());
+        let players: Vec<Entity> = app
+            .world_mut()
+            .query_filtered::<Entity, With<AnimationPlayer>>()
+            .iter(app.world())
+            .collect();
+        if let (true, Some(clip), true) = (converted, clip, players.len() >= COUNT) {
+            let (graph, node) = AnimationGraph::from_clip(clip);
+            let graph = app
+                .world_mut()
+                .resource_mut::<Assets<AnimationGraph>>()
+                .add(graph);
+            for (i, &p) in players.iter().enumerate() {
+                app.world_mut()
+                    .entity_mut(p)
+                    .insert(AnimationGraphHandle(graph.clone()));
+                if let Some(mut player) = app.world_mut().get_mut::<AnimationPlayer>(p) {
+                    player.play(node).repeat().seek_to(i as f32 * 0.037);
+                }
+            }
+            return Ok((app, BUDGET, camera, None));
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    Err(format!("the robots in {ROBOTS} did not load and convert"))
+}
+
+// ---------------------------------------------------------------------------------------
+// The render check.
+
+/// The last capture of each camera.
+#[derive(Resource, Clone, Default)]
+struct Captures(Arc<Mutex<Vec<Option<Image>>>>);
+
+fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
+    let mut app = render_app(cpu_building, None);
+    app.world_mut().resource_mut::<PolygonBudget>().total = 20_000;
+    let world = app.world_mut();
+    let patch = scene::patch(33);
+    let grid = Partition::grid(&patch, GridPlane::XZ, 4, 4).expect("grid");
+    let patch = MultiresMesh::from_indexed(&patch, &grid).map_err(|e| e.to_string())?;
+    let sphere = Mesh::from(Sphere::new(3.0).mesh().ico(5).map_err(|e| e.to_string())?);
+    let sphere = MultiresMesh::from_bevy_mesh(&sphere, PartitionSpec::Clusters(8))
+        .map_err(|e| e.to_string())?;
+    let (patch, sphere) = {
+        let mut assets = world.resource_mut::<Assets<MultiresMesh>>();
+        (assets.add(patch), assets.add(sphere))
+    };
+    let (grey, red) = {
+        let mut materials = world.resource_mut::<Assets<StandardMaterial>>();
+        (
+            materials.add(StandardMaterial::from_color(Color::srgb(0.8, 0.8, 0.75))),
+            materials.add(StandardMaterial::from_color(Color::srgb(0.8, 0.2, 0.15))),
+        )
+    };
+    let models = [
+        world
+            .spawn((
+                MultiresModel(patch.clone()),
+                MeshMaterial3d(grey.clone()),
+                Transform::from_xyz(-8.0, 0.0, 0.0),
+            ))
+            .id(),
+        world
+            .spawn((
+                MultiresModel(patch),
+                MeshMaterial3d(grey),
+                Transform::from_xyz(9.0, 0.0, -6.0),
+            ))
+            .id(),
+        world
+            .spawn((
+                MultiresModel(sphere),
+                MeshMaterial3d(red),
+                Transform::from_xyz(0.0, 4.0, 2.0),
+            ))
+            .id(),
+    ];
+    world.spawn((
+        DirectionalLight {
+            illuminance: 12_000.0,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(4.0, 10.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    let images = [target(&mut app, 192, 108), target(&mut app, 192, 108)];
+    let world = app.world_mut();
+    world.spawn((
+        Camera3d::default(),
+        RenderTarget::Image(images[0].clone().into()),
+        DepthPrepass,
+        Msaa::Off,
+        Transform::from_xyz(-4.0, 12.0, 22.0).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
+    ));
+    world.spawn((
+        Camera3d::default(),
+        Camera {
+            order: 1,
+            ..default()
+        },
+        RenderTarget::Image(images[1].clone().into()),
+        Msaa::Off,
+        Transform::from_xyz(20.0, 6.0, -2.0).looking_at(Vec3::new(0.0, 1.0, -2.0), Vec3::Y),
+    ));
+    let captures = Captures(Arc::new(Mutex::new(vec![None, None])));
+    app.insert_resource(captures.clone());
+
+    // Let the pipelines compile and the first levels land.
+    let mut changes = 0usize;
+    let capture = |app: &mut App| -> Result<Vec<Image>, String> {
+        captures
+            .0
+            .lock()
+            .expect("captures")
+            .iter_mut()
+            .for_each(|c| *c = None);
+        for (i, image) in images.iter().enumerate() {
+            app.world_mut()
+                .spawn(Screenshot::image(image.clone()))
+                .observe(
+                    move |captured: On<ScreenshotCaptured>, captures: Res<Captures>| {
+                        captures.0.lock().expect("captures")[i] = Some(captured.image.clone());
+                    },
+                );
+        }
+        for _ in 0..20 {
+            app.update();
+            let done = captures
+                .0
+                .lock()
+                .expect("captures")
+                .iter()
+                .all(Option::is_some);
+            if done {
+                return Ok(captures
+                    .0
+                    .lock()
+                    .expect("captures")
+                    .iter()
+                    .map(|c| c.clone().expect("captured"))
+                    .collect());
+            }
+        }
+        Err("the screenshots did not arrive".into())
+    };
+    // Wait until both views show the scene (pipelines compile slowly on lavapipe).
+    let mut shots = Vec::new();
+    for _ in 0..60 {
+        for _ in 0..5 {
+            app.update();
+        }
+        shots = capture(&mut app)?;
+        if shots.iter().all(|s| varied(s) > 0.2) {
+            break;
+        }
+    }
+    if !shots.iter().all(|s| varied(s) > 0.2) {
+        for (i, shot) in shots.iter().enumerate() {
+            save(shot, &dir.join(format!("view{i}_blank.png")))?;
+        }
+        return Err(format!(
+            "the scene was never drawn (fraction of pixels unlike the first: {:?}); see {}",
+            shots.iter().map(varied).collect::<Vec<_>>(),
+            dir.display()
+        ));
+    }
+
+    // Change levels: a budget that swings up and down, two frames each, then settle.
+    for budget in [20_000, 1_500, 12_000, 600, 9_000, 2_500, 16_000, 4_000] {
+        app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+        for _ in 0..2 {
+            app.update();
+            changes += app.world().resource::<AslodStats>().regions_changed;
+        }
+    }
+    let mut still = 0;
+    for _ in 0..4 {
+        app.update();
+        still += app.world().resource::<AslodStats>().regions_changed;
+    }
+    let lod = capture(&mut app)?;
+
+    // The reference: every region as a plain mesh at its final level, made fresh.
+    let mut counts = Vec::new();
+    let mut plain = Vec::new();
+    {
+        let world = app.world_mut();
+        let mut regions = world.query::<(
+            &LodRegion,
+            &Mesh3d,
+            &MeshMaterial3d<StandardMaterial>,
+            &GlobalTransform,
+        )>();
+        let mut fresh = Vec::new();
+        for (_, mesh, material, transform) in regions.iter(world) {
+            fresh.push((mesh.0.clone(), material.clone(), *transform));
+        }
+        for &model in &models {
+            let instance = world.get::<MultiresInstance>(model).ok_or("no instance")?;
+            counts.push(
+                (0..instance.regions().regions().len())
+                    .map(|r| instance.caches().triangle_count(r))
+                    .collect::<Vec<_>>(),
+            );
+        }
+        for (mesh, material, transform) in fresh {
+            let copy = world
+                .resource::<Assets<Mesh>>()
+                .get(&mesh)
+                .ok_or("a region mesh is gone")?
+                .clone();
+            let copy = world.resource_mut::<Assets<Mesh>>().add(copy);
+            plain.push(
+                world
+                    .spawn((Mesh3d(copy), material, transform.compute_transform()))
+                    .id(),
+            );
+        }
+        for model in models {
+            world.entity_mut(model).despawn();
+        }
+    }
+    for _ in 0..6 {
+        app.update();
+    }
+    let fresh = capture(&mut app)?;
+    let mut diffs = Vec::new();
+    for (i, (a, b)) in lod.iter().zip(&fresh).enumerate() {
+        save(a, &dir.join(format!("view{i}_lod.png")))?;
+        save(b, &dir.join(format!("view{i}_fresh.png")))?;
+        diffs.push(compare(a, b));
+    }
+    let json = serde_json::json!({
+        "gpu_building": !cpu_building,
+        "regions_changed": changes,
+        "changed_while_still": still,
+        "counts": counts,
+        "plain_meshes": plain.len(),
+        "views": diffs.iter().map(|(max, frac)| serde_json::json!({
+            "max_channel_difference": max,
+            "fraction_differing": frac,
+        })).collect::<Vec<_>>(),
+        "varied": lod.iter().map(varied).collect::<Vec<_>>(),
+    });
+    std::fs::write(
+        dir.join("check.json"),
+        serde_json::to_string_pretty(&json).expect("json"),
+    )
+    .map_err(|e| format!("write check.json: {e}"))?;
+    println!("{json}");
+    Ok(())
+}
+
+/// The fraction of pixels that differ from the first one.
+fn varied(image: &Image) -> f64 {
+    let Some(data) = &image.data else { return 0.0 };
+    let first = &data[..4];
+    data.chunks_exact(4).filter(|p| p != &first).count() as f64 / (data.len() / 4) as f64
+}
+
+/// The largest channel difference, and the fraction of pixels differing by more than 2.
+fn compare(a: &Image, b: &Image) -> (u8, f64) {
+    let (Some(a), Some(b)) = (&a.data, &b.data) else {
+        return (255, 1.0);
+    };
+    if a.len() != b.len() {
+        return (255, 1.0);
+    }
+    let mut max = 0;
+    let mut differing = 0;
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        let d = pa
+            .iter()
+            .zip(pb)
+            .map(|(x, y)| x.abs_diff(*y))
+            .max()
+            .unwrap_or(0);
+        max = max.max(d);
+        differing += usize::from(d > 2);
+    }
+    (max, differing as f64 / (a.len() / 4) as f64)
+}
+
+fn save(image: &Image, path: &Path) -> Result<(), String> {
+    image
+        .clone()
+        .try_into_dynamic()
+        .map_err(|e| e.to_string())?
+        .to_rgb8()
+        .save(path)
+        .map_err(|e| format!("save {}: {e}", path.display()))
+}

@@ -1,0 +1,372 @@
+//! Handing level changes to Bevy's renderer: a changed region costs its index data, and a
+//! skinned region the vertices `Deform` blended, and nothing else.
+//!
+//! Changing a mesh through `Assets::<Mesh>::get_mut` raises `AssetEvent::Modified`, and Bevy
+//! then clones the whole mesh into the render world and writes all of its vertices and
+//! indices to the GPU again. The plugin instead changes its region meshes with
+//! `get_mut_untracked` (so the main world's copy stays current for picking and for any later
+//! re-extraction) and queues the new bytes in [`RenderWrites`]. One extract system moves the
+//! queue to the render world, where [`apply_writes`] runs right after Bevy's own mesh
+//! preparation:
+//!
+//! - index data: the region mesh's index allocation in the `MeshAllocator` is replaced by one
+//!   of the new size and the bytes copied in; `RenderMesh::buffer_info` takes the new count
+//!   (direct draws read it), and the main world marks the region entity's `Aabb` changed, so
+//!   Bevy rebuilds that instance's `MeshInputUniform` from the new slice (GPU preprocessing
+//!   reads the index range from there);
+//! - vertex data (skinned regions): the blended run of vertices is written in place into the
+//!   mesh's vertex slice, interleaved as Bevy packs it, with one `write_buffer`.
+//!
+//! Every view, pass and material draws the same `RenderMesh` and slices, so shadows,
+//! prepasses and several cameras see the change in the frame that asked for it; nothing is
+//! throttled by `RenderAssetBytesPerFrame`.
+
+use bevy::asset::AssetId;
+use bevy::mesh::{Indices, Mesh};
+use bevy::platform::collections::HashSet;
+use bevy::prelude::*;
+use bevy::render::mesh::allocator::{
+    ElementClass, MeshAllocationKey, MeshAllocator, MeshAllocatorSettings, allocate_and_free_meshes,
+};
+use bevy::render::mesh::{RenderMesh, RenderMeshBufferInfo};
+use bevy::render::render_asset::{RenderAssets, prepare_assets};
+use bevy::render::renderer::{RenderDevice, RenderQueue};
+use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
+use std::ops::Range;
+
+/// How the plugin hands a region's new level to the renderer.
+#[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Resource, Default)]
+pub enum RegionUpload {
+    /// Index data only (and the blended vertices of skinned regions), written into the mesh
+    /// allocator's buffers in the render world. Falls back to [`WholeMesh`](Self::WholeMesh)
+    /// in an app without a render sub-app, where nothing is drawn.
+    #[default]
+    IndicesOnly,
+    /// Through `Assets::<Mesh>::get_mut`: Bevy re-extracts and re-uploads the whole region
+    /// mesh, vertices included, on every change. Kept to compare against.
+    WholeMesh,
+}
+
+/// One region mesh's new index buffer: `count` indices in `bytes` of the batch's arena.
+#[derive(Clone, Debug)]
+struct IndexWrite {
+    mesh: AssetId<Mesh>,
+    bytes: Range<usize>,
+    count: u32,
+    wide: bool,
+}
+
+/// A run of vertices of one region mesh, from vertex `first`, as interleaved records in
+/// `bytes` of the batch's arena.
+#[derive(Clone, Debug)]
+struct VertexWrite {
+    mesh: AssetId<Mesh>,
+    first: u32,
+    bytes: Range<usize>,
+}
+
+/// The writes of one frame: their bytes in one arena, reused from frame to frame.
+#[derive(Default, Debug)]
+pub(crate) struct WriteBatch {
+    arena: Vec<u8>,
+    indices: Vec<IndexWrite>,
+    vertices: Vec<VertexWrite>,
+}
+
+impl WriteBatch {
+    fn clear(&mut self) {
+        self.arena.clear();
+        self.indices.clear();
+        self.vertices.clear();
+    }
+
+    fn is_empty(&self) -> bool {
+        self.indices.is_empty() && self.vertices.is_empty()
+    }
+
+    /// Queues `indices` as the mesh's whole index buffer. An empty level is written as one
+    /// degenerate triangle, which draws nothing: a mesh without an index allocation would be
+    /// drawn as unindexed vertices.
+    fn push_indices(&mut self, mesh: AssetId<Mesh>, indices: &Indices) {
+        let start = self.arena.len();
+        let (count, wide) = match indices {
+            Indices::U16(i) if i.is_empty() => {
+                self.arena
+                    .extend_from_slice(bytemuck::cast_slice(&[0u16; 3]));
+                (3, false)
+            }
+            Indices::U32(i) if i.is_empty() => {
+                self.arena
+                    .extend_from_slice(bytemuck::cast_slice(&[0u32; 3]));
+                (3, true)
+            }
+            Indices::U16(i) => {
+                self.arena.extend_from_slice(bytemuck::cast_slice(i));
+                (i.len() as u32, false)
+            }
+            Indices::U32(i) => {
+                self.arena.extend_from_slice(bytemuck::cast_slice(i));
+                (i.len() as u32, true)
+            }
+        };
+        self.indices.push(IndexWrite {
+            mesh,
+            bytes: start..self.arena.len(),
+            count,
+            wide,
+        });
+    }
+
+    /// Queues vertices `run` of `mesh`, packed from its attributes as Bevy packs them (each
+    /// vertex's attributes one after another, in the mesh's attribute order).
+    fn push_vertices(&mut self, id: AssetId<Mesh>, mesh: &Mesh, run: Range<u32>) -> bool {
+        let Ok(attributes) = mesh.try_attributes() else {
+            return false;
+        };
+        let attributes: Vec<(usize, &[u8])> = attributes
+            .map(|(a, values)| (a.format.size() as usize, values.get_bytes()))
+            .collect();
+        let stride: usize = attributes.iter().map(|(size, _)| size).sum();
+        let (lo, hi) = (run.start as usize, run.end as usize);
+        if attributes.iter().any(|(size, b)| b.len() < hi * size) {
+            return false;
+        }
+        let start = self.arena.len();
+        self.arena.reserve((hi - lo) * stride);
+        for v in lo..hi {
+            for &(size, bytes) in &attributes {
+                self.arena
+                    .extend_from_slice(&bytes[v * size..(v + 1) * size]);
+            }
+        }
+        self.vertices.push(VertexWrite {
+            mesh: id,
+            first: run.start,
+            bytes: start..self.arena.len(),
+        });
+        true
+    }
+}
+
+/// The main world's queue of writes for the renderer, taken by the extract step. Writes are
+/// queued only when a render sub-app exists to take them.
+#[derive(Resource, Default, Debug)]
+pub(crate) struct RenderWrites {
+    /// Whether a render sub-app takes the writes (set when the plugin finishes building).
+    pub(crate) enabled: bool,
+    pub(crate) batch: WriteBatch,
+}
+
+/// What the plugin wrote to the GPU for region meshes in the last rendered frame (a resource
+/// of the render world, reset each frame). Bevy's own uploads (new meshes, meshes changed
+/// through `Assets::get_mut`) are not counted here.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RegionUploadStats {
+    /// Index bytes written.
+    pub index_bytes: u64,
+    /// Vertex bytes written (blended vertices of skinned regions).
+    pub vertex_bytes: u64,
+    /// Region meshes whose index buffer was replaced.
+    pub index_writes: u32,
+    /// Vertex runs written.
+    pub vertex_writes: u32,
+    /// Writes kept for the next frame because their mesh was not prepared yet.
+    pub deferred: u32,
+}
+
+/// The render world's writes: this frame's, and those whose mesh was not prepared yet.
+#[derive(Resource, Default)]
+struct PendingWrites {
+    batch: WriteBatch,
+    deferred: WriteBatch,
+}
+
+impl RenderWrites {
+    /// Queues a region mesh's new index buffer (`indices` is the mesh's buffer after the
+    /// change).
+    pub(crate) fn indices(&mut self, mesh: AssetId<Mesh>, indices: &Indices) {
+        self.batch.push_indices(mesh, indices);
+    }
+
+    /// Bytes queued so far this frame.
+    pub(crate) fn queued_bytes(&self) -> usize {
+        self.batch.arena.len()
+    }
+
+    /// Queues the vertices of `mesh` from `lo` to `hi` (inclusive), as the mesh holds them.
+    pub(crate) fn vertices(&mut self, id: AssetId<Mesh>, mesh: &Mesh, lo: u32, hi: u32) {
+        if !self.batch.push_vertices(id, mesh, lo..hi + 1) {
+            warn_once!(
+                "a skinned region mesh's vertex data cannot be read; its vertices are not updated"
+            );
+        }
+    }
+}
+
+/// Adds the render-world half when the app has a render sub-app.
+pub(super) fn finish(app: &mut App) {
+    let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
+        return;
+    };
+    render_app
+        .init_resource::<PendingWrites>()
+        .init_resource::<RegionUploadStats>()
+        .add_systems(ExtractSchedule, extract_writes)
+        .add_systems(
+            Render,
+            apply_writes
+                .in_set(RenderSystems::PrepareAssets)
+                .after(allocate_and_free_meshes)
+                .after(prepare_assets::<RenderMesh>),
+        );
+    app.world_mut().resource_mut::<RenderWrites>().enabled = true;
+}
+
+/// Moves the main world's queued writes to the render world (the two arenas trade places, so
+/// neither allocates in steady state).
+fn extract_writes(mut main: ResMut<MainWorld>, mut pending: ResMut<PendingWrites>) {
+    let Some(mut writes) = main.get_resource_mut::<RenderWrites>() else {
+        return;
+    };
+    pending.batch.clear();
+    std::mem::swap(&mut pending.batch, &mut writes.batch);
+}
+
+/// Writes the frame's index and vertex data into the mesh allocator's buffers, after Bevy
+/// has allocated and prepared the meshes it extracted this frame.
+fn apply_writes(
+    mut pending: ResMut<PendingWrites>,
+    mut allocator: ResMut<MeshAllocator>,
+    settings: Res<MeshAllocatorSettings>,
+    mut meshes: ResMut<RenderAssets<RenderMesh>>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    mut stats: ResMut<RegionUploadStats>,
+) {
+    *stats = RegionUploadStats::default();
+    let pending = &mut *pending;
+    if pending.batch.is_empty() && pending.deferred.is_empty() {
+        return;
+    }
+    // Deferred writes are older than this frame's: they go first, and a newer write of the
+    // same mesh replaces them.
+    let mut deferred = std::mem::take(&mut pending.deferred);
+    let batches = [&deferred, &pending.batch];
+
+    // Replace the index allocations: the new size for each mesh, in one allocation stage
+    // (the old one is freed first), then the bytes. A mesh Bevy has not prepared yet (its
+    // first frame was throttled, say) keeps its write for the next frame.
+    // Only the newest write of a mesh counts: two allocations of one key in a stage would
+    // leave the first copy without a place to go.
+    let mut ready = Vec::new();
+    let mut seen = HashSet::new();
+    let mut later = WriteBatch::default();
+    for (b, batch) in batches.iter().enumerate().rev() {
+        for (w, write) in batch.indices.iter().enumerate().rev() {
+            if !seen.insert(write.mesh) {
+                continue;
+            }
+            let key = MeshAllocationKey::new(write.mesh, ElementClass::Index);
+            let layout = allocator
+                .mesh_slabs(&write.mesh)
+                .and_then(|slabs| slabs.index_slab_id)
+                .and_then(|slab| allocator.slabs.get(&slab))
+                .map(|slab| *slab.element_layout());
+            let format = meshes.get(write.mesh).and_then(RenderMesh::index_format);
+            match (layout, format) {
+                (Some(layout), Some(format)) => {
+                    if (format == bevy::render::render_resource::IndexFormat::Uint32) != write.wide
+                    {
+                        warn_once!("a region mesh's index width changed; its level is not updated");
+                        continue;
+                    }
+                    ready.push((b, w, key, layout));
+                }
+                _ => {
+                    let bytes = &batch.arena[write.bytes.clone()];
+                    let start = later.arena.len();
+                    later.arena.extend_from_slice(bytes);
+                    later.indices.push(IndexWrite {
+                        bytes: start..later.arena.len(),
+                        ..write.clone()
+                    });
+                }
+            }
+        }
+    }
+    let mut stage = allocator.stage_allocation();
+    for &(b, w, key, layout) in &ready {
+        let write = &batches[b].indices[w];
+        stage.allocate(&key, write.bytes.len() as u64, layout, &settings);
+    }
+    stage.commit(&device, &queue);
+    for &(b, w, key, _) in &ready {
+        let batch = batches[b];
+        let write = &batch.indices[w];
+        let bytes = &batch.arena[write.bytes.clone()];
+        allocator.copy_element_data(
+            &key,
+            bytes.len(),
+            |mut slice| slice.copy_from_slice(bytes),
+            &device,
+            &queue,
+        );
+        if let Some(mesh) = meshes.get_mut(write.mesh)
+            && let RenderMeshBufferInfo::Indexed { count, .. } = &mut mesh.buffer_info
+        {
+            *count = write.count;
+        }
+        stats.index_bytes += bytes.len() as u64;
+        stats.index_writes += 1;
+    }
+
+    // Vertices are written in place: the allocation keeps its size and offset.
+    for batch in batches {
+        for write in &batch.vertices {
+            let bytes = &batch.arena[write.bytes.clone()];
+            let stride = meshes
+                .get(write.mesh)
+                .map(|m| m.layout.0.layout().array_stride);
+            match (allocator.mesh_vertex_slice(&write.mesh), stride) {
+                (Some(slice), Some(stride)) if stride > 0 => {
+                    let count = bytes.len() as u64 / stride;
+                    if u64::from(write.first) + count
+                        > u64::from(slice.range.end - slice.range.start)
+                    {
+                        warn_once!(
+                            "a skinned region's vertex run lies outside its mesh; not written"
+                        );
+                        continue;
+                    }
+                    let offset = (u64::from(slice.range.start) + u64::from(write.first)) * stride;
+                    queue.write_buffer(slice.buffer, offset, bytes);
+                    stats.vertex_bytes += bytes.len() as u64;
+                    stats.vertex_writes += 1;
+                }
+                _ => {
+                    let start = later.arena.len();
+                    later.arena.extend_from_slice(bytes);
+                    later.vertices.push(VertexWrite {
+                        bytes: start..later.arena.len(),
+                        ..write.clone()
+                    });
+                }
+            }
+        }
+    }
+    stats.deferred = (later.indices.len() + later.vertices.len()) as u32;
+    deferred.clear();
+    pending.deferred = later;
+}
+
+/// The bytes Bevy uploads again when a mesh is re-extracted: its whole vertex table and its
+/// index buffer (as `RenderMesh::byte_len` counts them).
+pub(crate) fn whole_mesh_bytes(mesh: &Mesh) -> u64 {
+    let vertex_size: u64 = mesh
+        .try_attributes()
+        .map(|a| a.map(|(a, _)| a.format.size()).sum())
+        .unwrap_or(0);
+    let index_bytes = mesh.get_index_buffer_bytes().map_or(0, <[u8]>::len);
+    vertex_size * mesh.count_vertices() as u64 + index_bytes as u64
+}

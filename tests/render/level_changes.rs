@@ -1,0 +1,57 @@
+//! Level changes as the renderer draws them (Vulkan; lavapipe on machines without a GPU):
+//! the `render_cost` example changes the levels of three models over several frames under two
+//! cameras, then draws the same final levels as plain meshes built fresh, and the screenshots
+//! must match. Skipped, with a message, only where no Vulkan driver is installed.
+
+use super::example_run::{example_binary, require_vulkan};
+use std::path::Path;
+use std::process::Command;
+
+#[test]
+fn level_changes_draw_the_same_as_fresh_meshes() {
+    if !require_vulkan("render") {
+        return;
+    }
+    let binary = example_binary("render_cost");
+    // With Bevy's GPU mesh preprocessing (the draw's index range is rebuilt from the mesh
+    // allocator) and without it (the draw reads the render mesh's index count).
+    for cpu in [false, true] {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(if cpu {
+            "level-changes-cpu"
+        } else {
+            "level-changes-gpu"
+        });
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut command = Command::new(&binary);
+        command.arg("--check").arg(&dir);
+        if cpu {
+            command.arg("--cpu-building");
+        }
+        let output = command
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("run the render_cost example");
+        let log = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            output.status.success(),
+            "render_cost --check failed: {}\n{log}",
+            output.status
+        );
+        let text = std::fs::read_to_string(dir.join("check.json")).expect("check.json");
+        let json: serde_json::Value = serde_json::from_str(&text).expect("valid json");
+        let changed = json["regions_changed"].as_u64().expect("regions_changed");
+        assert!(changed >= 40, "levels changed only {changed} times");
+        assert_eq!(json["changed_while_still"].as_u64(), Some(0), "{json}");
+        for (i, view) in json["views"].as_array().expect("views").iter().enumerate() {
+            let varied = json["varied"][i].as_f64().expect("varied");
+            assert!(varied > 0.2, "view {i} looks blank ({varied:.3})");
+            let fraction = view["fraction_differing"].as_f64().expect("fraction");
+            let max = view["max_channel_difference"].as_u64().expect("max");
+            assert!(
+                fraction <= 0.001,
+                "view {i} (cpu building: {cpu}): {fraction:.4} of pixels differ (max {max}) from the fresh meshes; see {}",
+                dir.display()
+            );
+        }
+    }
+}
