@@ -30,7 +30,12 @@ use bevy::render::mesh::allocator::{
 };
 use bevy::render::mesh::{RenderMesh, RenderMeshBufferInfo};
 use bevy::render::render_asset::{RenderAssets, prepare_assets};
+use bevy::render::render_resource::{
+    Buffer, BufferDescriptor, BufferUsages, COPY_BUFFER_ALIGNMENT, CommandEncoderDescriptor,
+    IndexFormat,
+};
 use bevy::render::renderer::{RenderDevice, RenderQueue};
+use bevy::render::slab_allocator::Slab;
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
 use std::ops::Range;
 
@@ -204,6 +209,57 @@ impl RenderWrites {
     }
 }
 
+/// One frame's bytes for the GPU, and where each run goes: written to the GPU at once and
+/// copied into place there.
+#[derive(Resource, Default)]
+struct Staging {
+    buffer: Option<Buffer>,
+    bytes: Vec<u8>,
+    /// Source offset, destination, destination offset, size: each a multiple of 4.
+    copies: Vec<(u64, Buffer, u64, u64)>,
+}
+
+impl Staging {
+    /// Queues `bytes` for `buffer` at `offset` (a multiple of 4; the slabs' slots are). The
+    /// size is rounded up to 4 bytes, which the allocation's last slot holds.
+    fn push(&mut self, buffer: &Buffer, offset: u64, bytes: &[u8]) {
+        let start = self.bytes.len() as u64;
+        self.bytes.extend_from_slice(bytes);
+        let size = (bytes.len() as u64).next_multiple_of(COPY_BUFFER_ALIGNMENT);
+        self.bytes.resize((start + size) as usize, 0);
+        self.copies.push((start, buffer.clone(), offset, size));
+    }
+
+    /// Writes the staged bytes and copies each run into place, in one submission (before
+    /// the frame's draws, which are submitted later).
+    fn submit(&mut self, device: &RenderDevice, queue: &RenderQueue) {
+        if self.copies.is_empty() {
+            return;
+        }
+        let needed = self.bytes.len() as u64;
+        if self.buffer.as_ref().is_none_or(|b| b.size() < needed) {
+            self.buffer = Some(device.create_buffer(&BufferDescriptor {
+                label: Some("aslod region staging"),
+                size: needed.next_power_of_two(),
+                usage: BufferUsages::COPY_SRC | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        let Some(staging) = &self.buffer else {
+            return;
+        };
+        queue.write_buffer(staging, 0, &self.bytes);
+        let mut encoder = device.create_command_encoder(&CommandEncoderDescriptor {
+            label: Some("aslod region copies"),
+        });
+        for (src, dst, offset, size) in &self.copies {
+            encoder.copy_buffer_to_buffer(staging, *src, dst, *offset, *size);
+        }
+        queue.submit([encoder.finish()]);
+        self.copies.clear();
+    }
+}
+
 /// Adds the render-world half when the app has a render sub-app.
 pub(super) fn finish(app: &mut App) {
     let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
@@ -211,6 +267,7 @@ pub(super) fn finish(app: &mut App) {
     };
     render_app
         .init_resource::<PendingWrites>()
+        .init_resource::<Staging>()
         .init_resource::<RegionUploadStats>()
         .add_systems(ExtractSchedule, extract_writes)
         .add_systems(
@@ -242,6 +299,7 @@ fn apply_writes(
     mut meshes: ResMut<RenderAssets<RenderMesh>>,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
+    mut staging: ResMut<Staging>,
     mut stats: ResMut<RegionUploadStats>,
 ) {
     *stats = RegionUploadStats::default();
@@ -276,7 +334,7 @@ fn apply_writes(
             let format = meshes.get(write.mesh).and_then(RenderMesh::index_format);
             match (layout, format) {
                 (Some(layout), Some(format)) => {
-                    if (format == bevy::render::render_resource::IndexFormat::Uint32) != write.wide
+                    if (format == IndexFormat::Uint32) != write.wide
                     {
                         warn_once!("a region mesh's index width changed; its level is not updated");
                         continue;
@@ -301,17 +359,39 @@ fn apply_writes(
         stage.allocate(&key, write.bytes.len() as u64, layout, &settings);
     }
     stage.commit(&device, &queue);
+
+    // The bytes go to the GPU in one write into a staging buffer and one copy per region
+    // into its place in the slabs: a queue write per region costs a staging allocation each.
+    let staging = &mut *staging;
+    staging.bytes.clear();
+    staging.copies.clear();
     for &(b, w, key, _) in &ready {
         let batch = batches[b];
         let write = &batch.indices[w];
         let bytes = &batch.arena[write.bytes.clone()];
-        allocator.copy_element_data(
-            &key,
-            bytes.len(),
-            |mut slice| slice.copy_from_slice(bytes),
-            &device,
-            &queue,
-        );
+        let large = allocator
+            .mesh_slabs(&write.mesh)
+            .and_then(|slabs| slabs.index_slab_id)
+            .and_then(|slab| allocator.slabs.get(&slab))
+            .is_some_and(|slab| matches!(slab, Slab::LargeObject(_)));
+        if large {
+            // A slab of its own is created with its data.
+            allocator.copy_element_data(
+                &key,
+                bytes.len(),
+                |mut slice| slice.copy_from_slice(bytes),
+                &device,
+                &queue,
+            );
+        } else {
+            // Makes the new allocation resident without writing, so its place is known.
+            allocator.copy_element_data(&key, 0, |_| {}, &device, &queue);
+            let Some(slice) = allocator.mesh_index_slice(&write.mesh) else {
+                continue;
+            };
+            let element = if write.wide { 4 } else { 2 };
+            staging.push(slice.buffer, u64::from(slice.range.start) * element, bytes);
+        }
         if let Some(mesh) = meshes.get_mut(write.mesh)
             && let RenderMeshBufferInfo::Indexed { count, .. } = &mut mesh.buffer_info
         {
@@ -340,7 +420,7 @@ fn apply_writes(
                         continue;
                     }
                     let offset = (u64::from(slice.range.start) + u64::from(write.first)) * stride;
-                    queue.write_buffer(slice.buffer, offset, bytes);
+                    staging.push(slice.buffer, offset, bytes);
                     stats.vertex_bytes += bytes.len() as u64;
                     stats.vertex_writes += 1;
                 }
@@ -355,6 +435,7 @@ fn apply_writes(
             }
         }
     }
+    staging.submit(&device, &queue);
     stats.deferred = (later.indices.len() + later.vertices.len()) as u32;
     deferred.clear();
     pending.deferred = later;
