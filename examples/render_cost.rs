@@ -178,8 +178,8 @@ fn add_render_timers(app: &mut App) {
                 (|mut c: ResMut<RenderClock>| {
                     c.cost.extract_ms = c.extract.map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3)
                 })
-                    .after(AssetExtractionSystems)
-                    .after(bevy::pbr::MeshExtractionSystems),
+                .after(AssetExtractionSystems)
+                .after(bevy::pbr::MeshExtractionSystems),
             ),
         )
         .add_systems(
@@ -239,6 +239,7 @@ struct Frame {
     region_bytes: u64,
     index_bytes: u64,
     changed: usize,
+    copies: u32,
     frame_ms: f64,
     triangles: u64,
 }
@@ -293,6 +294,7 @@ fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
                     region_bytes: up.index_bytes + up.vertex_bytes,
                     index_bytes: up.index_bytes,
                     changed: stats.regions_changed,
+                    copies: up.copies,
                     frame_ms,
                     triangles: stats.triangles,
                 });
@@ -317,9 +319,9 @@ fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
         std::thread::available_parallelism().map_or(0, usize::from)
     );
     println!(
-        "| upload | camera | ours ms | extract ms | prepare ms | instances ms | render world ms | mesh bytes to GPU | of which index bytes of changed regions | regions changed | frame ms | triangles |"
+        "| upload | camera | ours ms | extract ms | prepare ms | instances ms | render world ms | mesh bytes to GPU | of which index bytes of changed regions | regions changed | GPU copies | frame ms | triangles |"
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (mode, still, frames) in &rows {
         let med = |f: &dyn Fn(&Frame) -> f64| {
             let mut v: Vec<f64> = frames.iter().map(f).collect();
@@ -327,7 +329,7 @@ fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
             v[v.len() / 2]
         };
         println!(
-            "| {mode:?} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.1} | {:.0} |",
+            "| {mode:?} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1} | {:.0} |",
             if *still { "still" } else { "moving" },
             med(&|f| f.ours_ms),
             med(&|f| f.cost.extract_ms),
@@ -337,6 +339,7 @@ fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
             med(&|f| (f.cost.bevy_bytes + f.region_bytes) as f64),
             med(&|f| f.index_bytes as f64),
             med(&|f| f.changed as f64),
+            med(&|f| f64::from(f.copies)),
             med(&|f| f.frame_ms),
             med(&|f| f.triangles as f64),
         );

@@ -178,6 +178,8 @@ pub struct RegionUploadStats {
     pub vertex_writes: u32,
     /// Writes kept for the next frame because their mesh was not prepared yet.
     pub deferred: u32,
+    /// GPU copies the writes took (runs that follow each other in a buffer go as one).
+    pub copies: u32,
 }
 
 /// The render world's writes: this frame's, and those whose mesh was not prepared yet.
@@ -215,8 +217,12 @@ impl RenderWrites {
 struct Staging {
     buffer: Option<Buffer>,
     bytes: Vec<u8>,
+    /// `bytes` in the order of the copies' destinations.
+    packed: Vec<u8>,
     /// Source offset, destination, destination offset, size: each a multiple of 4.
     copies: Vec<(u64, Buffer, u64, u64)>,
+    /// Copies the last submission made of them.
+    merged: usize,
 }
 
 impl Staging {
@@ -248,12 +254,30 @@ impl Staging {
         let Some(staging) = &self.buffer else {
             return;
         };
-        queue.write_buffer(staging, 0, &self.bytes);
+        // In the order of their places, so runs that follow each other in a buffer go as one
+        // copy from one stretch of the staging buffer.
+        self.copies
+            .sort_unstable_by_key(|(_, dst, offset, _)| (dst.id(), *offset));
+        self.packed.clear();
+        let mut merged: Vec<(u64, &Buffer, u64, u64)> = Vec::with_capacity(self.copies.len());
+        for (src, dst, offset, size) in &self.copies {
+            let at = self.packed.len() as u64;
+            self.packed
+                .extend_from_slice(&self.bytes[*src as usize..(*src + *size) as usize]);
+            match merged.last_mut() {
+                Some(last) if last.1.id() == dst.id() && last.2 + last.3 == *offset => {
+                    last.3 += size;
+                }
+                _ => merged.push((at, dst, *offset, *size)),
+            }
+        }
+        queue.write_buffer(staging, 0, &self.packed);
+        self.merged = merged.len();
         let mut encoder = device.create_command_encoder(&CommandEncoderDescriptor {
             label: Some("aslod region copies"),
         });
-        for (src, dst, offset, size) in &self.copies {
-            encoder.copy_buffer_to_buffer(staging, *src, dst, *offset, *size);
+        for (src, dst, offset, size) in merged {
+            encoder.copy_buffer_to_buffer(staging, src, dst, offset, size);
         }
         queue.submit([encoder.finish()]);
         self.copies.clear();
@@ -319,6 +343,7 @@ fn apply_writes(
     // leave the first copy without a place to go.
     let mut ready = Vec::new();
     let mut seen = HashSet::new();
+    let mut layouts = [None; 2];
     let mut later = WriteBatch::default();
     for (b, batch) in batches.iter().enumerate().rev() {
         for (w, write) in batch.indices.iter().enumerate().rev() {
@@ -326,16 +351,23 @@ fn apply_writes(
                 continue;
             }
             let key = MeshAllocationKey::new(write.mesh, ElementClass::Index);
-            let layout = allocator
-                .mesh_slabs(&write.mesh)
-                .and_then(|slabs| slabs.index_slab_id)
-                .and_then(|slab| allocator.slabs.get(&slab))
-                .map(|slab| *slab.element_layout());
+            // A mesh Bevy has prepared has its allocations. Every index slab of one width has
+            // the same element layout: it is looked up once per width.
             let format = meshes.get(write.mesh).and_then(RenderMesh::index_format);
+            let layout = format.and_then(|format| {
+                let slot = &mut layouts[usize::from(format == IndexFormat::Uint32)];
+                if slot.is_none() {
+                    *slot = allocator
+                        .mesh_slabs(&write.mesh)
+                        .and_then(|slabs| slabs.index_slab_id)
+                        .and_then(|slab| allocator.slabs.get(&slab))
+                        .map(|slab| *slab.element_layout());
+                }
+                *slot
+            });
             match (layout, format) {
                 (Some(layout), Some(format)) => {
-                    if (format == IndexFormat::Uint32) != write.wide
-                    {
+                    if (format == IndexFormat::Uint32) != write.wide {
                         warn_once!("a region mesh's index width changed; its level is not updated");
                         continue;
                     }
@@ -353,6 +385,13 @@ fn apply_writes(
             }
         }
     }
+    // Every old allocation goes first, so the new ones can fill the merged holes one after
+    // another (and their copies merge, below).
+    let mut free = allocator.stage_deallocation();
+    for (_, _, key, _) in &ready {
+        free.free(key);
+    }
+    free.commit();
     let mut stage = allocator.stage_allocation();
     for &(b, w, key, layout) in &ready {
         let write = &batches[b].indices[w];
@@ -436,6 +475,7 @@ fn apply_writes(
         }
     }
     staging.submit(&device, &queue);
+    stats.copies = staging.merged as u32;
     stats.deferred = (later.indices.len() + later.vertices.len()) as u32;
     deferred.clear();
     pending.deferred = later;
