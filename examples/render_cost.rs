@@ -9,9 +9,10 @@
 //! and its mesh instance rebuild, the bytes of mesh data handed to the GPU, and the whole
 //! frame (pipelined rendering off, so `app.update()` includes the render world).
 //!
-//! `render_cost --check DIR [--cpu-building]`: the render test. Regions of three models change
-//! level over several frames under two cameras (one with a depth prepass, a shadow-casting
-//! light); then the models are replaced by plain meshes built fresh from the final levels and
+//! `render_cost --check DIR [--cpu-building]`: the render test. Regions of three models and of
+//! a dancing mannequin (`assets/mannequin.glb`, skinned) change level over several frames under
+//! two cameras (one with a depth prepass, a shadow-casting light); then the dance pauses, the
+//! models are replaced by plain meshes built fresh from the final levels and
 //! the two pairs of screenshots are compared. Writes the PNGs and `check.json` into DIR.
 //! `--cpu-building` turns Bevy's GPU mesh preprocessing off.
 
@@ -21,6 +22,7 @@ mod scene;
 
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
+use bevy::camera::visibility::NoFrustumCulling;
 use bevy::core_pipeline::prepass::DepthPrepass;
 use bevy::gltf::Gltf;
 use bevy::platform::time::Instant;
@@ -49,6 +51,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 const ROBOTS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/testdata/characters");
+const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets");
 
 fn main() {
     let mut frames = 60;
@@ -471,7 +474,7 @@ struct Captures(Arc<Mutex<Vec<Option<Image>>>>);
 
 fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
-    let mut app = render_app(cpu_building, None);
+    let mut app = render_app(cpu_building, Some(ASSETS));
     app.world_mut().resource_mut::<PolygonBudget>().total = 20_000;
     let world = app.world_mut();
     let patch = scene::patch(33);
@@ -522,6 +525,19 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         },
         Transform::from_xyz(4.0, 10.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
+    // A skinned model: the mannequin, dancing while the levels change (its deformable
+    // regions' vertices are written every frame), then paused.
+    let gltf: Handle<Gltf> = world.resource::<AssetServer>().load("mannequin.glb");
+    let scene = world
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("mannequin.glb"));
+    let dancer = world
+        .spawn((
+            WorldAssetRoot(scene),
+            MultiresScene::default(),
+            Transform::from_xyz(4.0, 0.0, 5.0).with_scale(Vec3::splat(3.0)),
+        ))
+        .id();
     let images = [target(&mut app, 192, 108), target(&mut app, 192, 108)];
     let world = app.world_mut();
     world.spawn((
@@ -562,7 +578,10 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
                     },
                 );
         }
-        for _ in 0..20 {
+        // Readbacks arrive a few frames later, later still while pipelines compile on a
+        // busy machine.
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(120) {
             app.update();
             let done = captures
                 .0
@@ -580,7 +599,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
                     .collect());
             }
         }
-        Err("the screenshots did not arrive".into())
+        Err("the screenshots did not arrive within two minutes".into())
     };
     // Wait until both views show the scene (pipelines compile slowly on lavapipe).
     let mut shots = Vec::new();
@@ -604,12 +623,49 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         ));
     }
 
+    // The mannequin dances: its clip on its player.
+    let clip = app
+        .world()
+        .resource::<Assets<Gltf>>()
+        .get(&gltf)
+        .and_then(|g| g.animations.first().cloned())
+        .ok_or("mannequin.glb has no clip")?;
+    let (graph, node) = AnimationGraph::from_clip(clip);
+    let graph = app
+        .world_mut()
+        .resource_mut::<Assets<AnimationGraph>>()
+        .add(graph);
+    let players: Vec<Entity> = app
+        .world_mut()
+        .query_filtered::<Entity, With<AnimationPlayer>>()
+        .iter(app.world())
+        .collect();
+    if players.is_empty() || app.world().get::<MultiresSceneModels>(dancer).is_none() {
+        return Err("the mannequin was not converted".into());
+    }
+    for &p in &players {
+        app.world_mut()
+            .entity_mut(p)
+            .insert(AnimationGraphHandle(graph.clone()));
+        if let Some(mut player) = app.world_mut().get_mut::<AnimationPlayer>(p) {
+            player.play(node).repeat();
+        }
+    }
+
     // Change levels: a budget that swings up and down, two frames each, then settle.
+    let mut blended = 0;
     for budget in [20_000, 1_500, 12_000, 600, 9_000, 2_500, 16_000, 4_000] {
         app.world_mut().resource_mut::<PolygonBudget>().total = budget;
         for _ in 0..2 {
             app.update();
-            changes += app.world().resource::<AslodStats>().regions_changed;
+            let stats = app.world().resource::<AslodStats>();
+            changes += stats.regions_changed;
+            blended += stats.vertices_blended;
+        }
+    }
+    for &p in &players {
+        if let Some(mut player) = app.world_mut().get_mut::<AnimationPlayer>(p) {
+            player.pause_all();
         }
     }
     let mut still = 0;
@@ -629,10 +685,11 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
             &Mesh3d,
             &MeshMaterial3d<StandardMaterial>,
             &GlobalTransform,
+            Has<NoFrustumCulling>,
         )>();
         let mut fresh = Vec::new();
-        for (_, mesh, material, transform) in regions.iter(world) {
-            fresh.push((mesh.0.clone(), material.clone(), *transform));
+        for (_, mesh, material, transform, unculled) in regions.iter(world) {
+            fresh.push((mesh.0.clone(), material.clone(), *transform, unculled));
         }
         for &model in &models {
             let instance = world.get::<MultiresInstance>(model).ok_or("no instance")?;
@@ -642,20 +699,20 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
                     .collect::<Vec<_>>(),
             );
         }
-        for (mesh, material, transform) in fresh {
+        for (mesh, material, transform, unculled) in fresh {
             let copy = world
                 .resource::<Assets<Mesh>>()
                 .get(&mesh)
                 .ok_or("a region mesh is gone")?
                 .clone();
             let copy = world.resource_mut::<Assets<Mesh>>().add(copy);
-            plain.push(
-                world
-                    .spawn((Mesh3d(copy), material, transform.compute_transform()))
-                    .id(),
-            );
+            let mut entity = world.spawn((Mesh3d(copy), material, transform.compute_transform()));
+            if unculled {
+                entity.insert(NoFrustumCulling);
+            }
+            plain.push(entity.id());
         }
-        for model in models {
+        for model in models.into_iter().chain([dancer]) {
             world.entity_mut(model).despawn();
         }
     }
@@ -672,6 +729,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     let json = serde_json::json!({
         "gpu_building": !cpu_building,
         "regions_changed": changes,
+        "vertices_blended": blended,
         "changed_while_still": still,
         "counts": counts,
         "plain_meshes": plain.len(),
