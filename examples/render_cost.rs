@@ -1,8 +1,9 @@
 //! What a level change costs the renderer, with rendering on (Vulkan; lavapipe without a GPU).
 //!
-//! `render_cost [--frames N] [--scene grid|robots]`: the plugin bench's 1,000 patches × 16
-//! regions under P = 1,000,000 (or 100 dancing RobotExpressive characters under P = 100,000)
-//! rendered into a 32×18 image, so rasterising costs next to nothing. For each way of
+//! `render_cost [--frames N] [--hysteresis E] [--scene grid|silvretta|aerobic]`: the plugin
+//! bench's 1,000 patches × 16 regions under P = 1,000,000 (or Silvretta's terrain under 10,000,
+//! or the aerobic class's three dancing mannequins under 5,000) rendered into a 32×18 image, so
+//! rasterising costs next to nothing. For each way of
 //! handing levels to the renderer ([`RegionUpload`]) it runs the camera path and a still
 //! camera, interleaved, and prints per frame (medians): the plugin's own systems, the render
 //! world's extraction, its mesh preparation (allocation, `RenderMesh`, the plugin's writes)
@@ -16,9 +17,12 @@
 //! the two pairs of screenshots are compared. Writes the PNGs and `check.json` into DIR.
 //! `--cpu-building` turns Bevy's GPU mesh preprocessing off.
 
+mod common;
 #[allow(dead_code)]
 #[path = "../benches/common/scene.rs"]
 mod scene;
+
+use common::terrain;
 
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
@@ -50,7 +54,6 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-const ROBOTS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/testdata/characters");
 const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets");
 
 fn main() {
@@ -58,6 +61,7 @@ fn main() {
     let mut scene = "grid".to_string();
     let mut check = None;
     let mut cpu_building = false;
+    let mut hysteresis = 0;
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         match arg.as_str() {
@@ -65,13 +69,16 @@ fn main() {
             "--scene" => scene = args.next().unwrap_or(scene),
             "--check" => check = args.next().map(PathBuf::from),
             "--cpu-building" => cpu_building = true,
+            "--hysteresis" => {
+                hysteresis = args.next().and_then(|v| v.parse().ok()).unwrap_or(hysteresis)
+            }
             // `cargo bench` and `cargo test` pass flags of their own.
             _ => {}
         }
     }
     let result = match check {
         Some(dir) => run_check(&dir, cpu_building),
-        None => run_bench(&scene, frames),
+        None => run_bench(&scene, frames, hysteresis),
     };
     if let Err(e) = result {
         eprintln!("render_cost: {e}");
@@ -247,11 +254,17 @@ struct Frame {
     triangles: u64,
 }
 
-fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
-    let (mut app, budget, camera, side) = match scene_name {
-        "grid" => grid_scene(),
-        "robots" => robot_scene()?,
-        other => return Err(format!("unknown scene {other:?} (grid or robots)")),
+fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), String> {
+    let Bench {
+        mut app,
+        budget,
+        camera,
+        path,
+    } = match scene_name {
+        "grid" => grid_scene(hysteresis),
+        "silvretta" => silvretta_scene(hysteresis),
+        "aerobic" => aerobic_scene(hysteresis)?,
+        other => return Err(format!("unknown scene {other:?} (grid, silvretta or aerobic)")),
     };
     // Pipelines compile slowly on a software rasteriser: let them, and the levels, settle.
     for _ in 0..120 {
@@ -276,13 +289,9 @@ fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
                 } else {
                     frame as f32 / (10 + frames) as f32
                 };
-                if let Some(side) = side {
-                    let (eye, at) = scene::camera(t, side);
-                    *app.world_mut()
-                        .get_mut::<Transform>(camera)
-                        .ok_or("no camera")? =
-                        Transform::from_translation(eye).looking_at(at, Vec3::Y);
-                }
+                *app.world_mut()
+                    .get_mut::<Transform>(camera)
+                    .ok_or("no camera")? = path(t);
                 let start = Instant::now();
                 app.update();
                 let frame_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -313,7 +322,7 @@ fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
         })
         .unwrap_or_else(|| "unknown CPU".into());
     println!(
-        "render_cost {scene_name}: P = {budget}, 32x18 target, {frames} frames x {rounds} rounds per row, {} build, {cpu}, {} cores",
+        "render_cost {scene_name}: P = {budget}, hysteresis {hysteresis}, 32x18 target, {frames} frames x {rounds} rounds per row, {} build, {cpu}, {} cores",
         if cfg!(debug_assertions) {
             "debug"
         } else {
@@ -350,31 +359,22 @@ fn run_bench(scene_name: &str, frames: usize) -> Result<(), String> {
     Ok(())
 }
 
-/// The plugin bench's scene: 1,000 bumpy patches in 4×4 regions under P = 1,000,000.
-fn grid_scene() -> (App, u32, Entity, Option<usize>) {
-    const MODELS: usize = 1_000;
-    const BUDGET: u32 = 1_000_000;
-    let mut app = render_app(false, None);
-    app.world_mut().resource_mut::<PolygonBudget>().total = BUDGET;
-    let mesh = scene::patch(33);
-    let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
-    let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(asset);
-    let material = app
-        .world_mut()
-        .resource_mut::<Assets<StandardMaterial>>()
-        .add(StandardMaterial::default());
-    let side = scene::side(MODELS);
-    for i in 0..MODELS {
-        app.world_mut().spawn((
-            MultiresModel(handle.clone()),
-            MeshMaterial3d(material.clone()),
-            Transform::from_translation(scene::model_position(i, side)),
-        ));
-    }
+/// A bench scene: the app, its budget, its camera and the camera's path over `t` in `0..1`.
+struct Bench {
+    app: App,
+    budget: u32,
+    camera: Entity,
+    path: Box<dyn Fn(f32) -> Transform>,
+}
+
+/// A bench app with the budget, the hysteresis, a 32×18 camera and a light.
+fn bench_app(budget: u32, hysteresis: u32, asset_root: Option<&str>) -> (App, Entity) {
+    let mut app = render_app(false, asset_root);
+    *app.world_mut().resource_mut::<PolygonBudget>() = PolygonBudget {
+        total: budget,
+        hysteresis,
+        ..default()
+    };
     let image = target(&mut app, 32, 18);
     let camera = app
         .world_mut()
@@ -388,48 +388,109 @@ fn grid_scene() -> (App, u32, Entity, Option<usize>) {
         DirectionalLight::default(),
         Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
-    (app, BUDGET, camera, Some(side))
+    (app, camera)
 }
 
-/// 100 RobotExpressive characters dancing out of phase under P = 100,000 (skinned regions:
-/// `Deform` blends their vertices every frame).
-fn robot_scene() -> Result<(App, u32, Entity, Option<usize>), String> {
-    const COUNT: usize = 100;
-    const BUDGET: u32 = 100_000;
-    const ROBOT: &str = "RobotExpressive.glb";
-    let mut app = render_app(false, Some(ROBOTS));
-    app.world_mut().resource_mut::<PolygonBudget>().total = BUDGET;
-    let gltf: Handle<Gltf> = app.world().resource::<AssetServer>().load(ROBOT);
+fn add_model(app: &mut App, asset: MultiresMesh, at: &[Vec3]) {
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(asset);
+    let material = app
+        .world_mut()
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::default());
+    for &at in at {
+        app.world_mut().spawn((
+            MultiresModel(handle.clone()),
+            MeshMaterial3d(material.clone()),
+            Transform::from_translation(at),
+        ));
+    }
+}
+
+/// The plugin bench's scene: 1,000 bumpy patches in 4×4 regions under P = 1,000,000, the
+/// camera sweeping along the front of the grid.
+fn grid_scene(hysteresis: u32) -> Bench {
+    const MODELS: usize = 1_000;
+    let (mut app, camera) = bench_app(1_000_000, hysteresis, None);
+    let mesh = scene::patch(33);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
+    let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
+    let side = scene::side(MODELS);
+    let at: Vec<Vec3> = (0..MODELS).map(|i| scene::model_position(i, side)).collect();
+    add_model(&mut app, asset, &at);
+    Bench {
+        app,
+        budget: 1_000_000,
+        camera,
+        path: Box::new(move |t| {
+            let (eye, at) = scene::camera(t, side);
+            Transform::from_translation(eye).looking_at(at, Vec3::Y)
+        }),
+    }
+}
+
+/// Silvretta (Figure 8): the 135,200-triangle terrain in 6×6 regions under P = 10,000, the
+/// camera flying low from a corner towards the middle.
+fn silvretta_scene(hysteresis: u32) -> Bench {
+    let (mut app, camera) = bench_app(10_000, hysteresis, None);
+    let mesh = terrain::terrain();
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 6, 6).expect("grid");
+    let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid terrain");
+    add_model(&mut app, asset, &[Vec3::ZERO]);
+    let half = (terrain::SIDE - 1) as f32 * terrain::SPACING * 0.5;
+    Bench {
+        app,
+        budget: 10_000,
+        camera,
+        path: Box::new(move |t| {
+            let eye = Vec3::new(-half + 4.0, 1.2 * terrain::HEIGHT, -half + 4.0)
+                .lerp(Vec3::new(half * 0.3, terrain::HEIGHT, half * 0.3), t);
+            Transform::from_translation(eye).looking_at(eye + Vec3::new(1.0, -0.6, 1.0), Vec3::Y)
+        }),
+    }
+}
+
+/// The aerobic class: three mannequins (`assets/mannequin.glb`, skinned) dancing out of
+/// phase under P = 5,000, the camera circling them.
+fn aerobic_scene(hysteresis: u32) -> Result<Bench, String> {
+    let (mut app, camera) = bench_app(5_000, hysteresis, Some(ASSETS));
+    let gltf: Handle<Gltf> = app.world().resource::<AssetServer>().load("mannequin.glb");
     let scene = app
         .world()
         .resource::<AssetServer>()
-        .load(GltfAssetLabel::Scene(0).from_asset(ROBOT));
-    let roots: Vec<Entity> = (0..COUNT)
+        .load(GltfAssetLabel::Scene(0).from_asset("mannequin.glb"));
+    let dancers: Vec<Entity> = (0..3)
         .map(|i| {
-            let (x, z) = ((i % 10) as f32 * 5.0 - 22.5, (i / 10) as f32 * 5.0 - 22.5);
             app.world_mut()
                 .spawn((
                     WorldAssetRoot(scene.clone()),
                     MultiresScene::default(),
-                    Transform::from_xyz(x, 0.0, z),
+                    Transform::from_xyz(i as f32 * 1.5 - 1.5, 0.0, 0.0),
                 ))
                 .id()
         })
         .collect();
-    let image = target(&mut app, 32, 18);
-    let camera = app
-        .world_mut()
-        .spawn((
-            Camera3d::default(),
-            RenderTarget::Image(image.into()),
-            Transform::from_xyz(0.0, 30.0, 60.0).looking_at(Vec3::ZERO, Vec3::Y),
-        ))
-        .id();
-    app.world_mut().spawn((
-        DirectionalLight::default(),
-        Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
-    ));
-    for _ in 0..20_000 {
+    start_clip(&mut app, &gltf, &dancers)?;
+    Ok(Bench {
+        app,
+        budget: 5_000,
+        camera,
+        path: Box::new(|t| {
+            let angle = t * std::f32::consts::TAU;
+            let radius = 7.0 - 4.0 * (t * std::f32::consts::PI).sin();
+            Transform::from_xyz(angle.sin() * radius, 1.6, angle.cos() * radius)
+                .looking_at(Vec3::new(0.0, 0.9, 0.0), Vec3::Y)
+        }),
+    })
+}
+
+/// Runs the app until every scene root is converted and the glTF's first clip is loaded, then
+/// plays it on every player, out of phase.
+fn start_clip(app: &mut App, gltf: &Handle<Gltf>, roots: &[Entity]) -> Result<(), String> {
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(300) {
         app.update();
         let converted = roots
             .iter()
@@ -437,14 +498,14 @@ fn robot_scene() -> Result<(App, u32, Entity, Option<usize>), String> {
         let clip = app
             .world()
             .resource::<Assets<Gltf>>()
-            .get(&gltf)
-            .and_then(|g| g.named_animations.get("Dance").cloned());
+            .get(gltf)
+            .and_then(|g| g.animations.first().cloned());
         let players: Vec<Entity> = app
             .world_mut()
             .query_filtered::<Entity, With<AnimationPlayer>>()
             .iter(app.world())
             .collect();
-        if let (true, Some(clip), true) = (converted, clip, players.len() >= COUNT) {
+        if let (true, Some(clip), true) = (converted, clip, players.len() >= roots.len()) {
             let (graph, node) = AnimationGraph::from_clip(clip);
             let graph = app
                 .world_mut()
@@ -455,14 +516,14 @@ fn robot_scene() -> Result<(App, u32, Entity, Option<usize>), String> {
                     .entity_mut(p)
                     .insert(AnimationGraphHandle(graph.clone()));
                 if let Some(mut player) = app.world_mut().get_mut::<AnimationPlayer>(p) {
-                    player.play(node).repeat().seek_to(i as f32 * 0.037);
+                    player.play(node).repeat().seek_to(i as f32 * 0.7);
                 }
             }
-            return Ok((app, BUDGET, camera, None));
+            return Ok(());
         }
         std::thread::sleep(Duration::from_millis(2));
     }
-    Err(format!("the robots in {ROBOTS} did not load and convert"))
+    Err("the scene did not load and convert in five minutes".into())
 }
 
 // ---------------------------------------------------------------------------------------
@@ -559,6 +620,8 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     ));
     let captures = Captures(Arc::new(Mutex::new(vec![None, None])));
     app.insert_resource(captures.clone());
+    // The mannequin dances from the start.
+    start_clip(&mut app, &gltf, &[dancer])?;
 
     // Let the pipelines compile and the first levels land.
     let mut changes = 0usize;
@@ -623,34 +686,11 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         ));
     }
 
-    // The mannequin dances: its clip on its player.
-    let clip = app
-        .world()
-        .resource::<Assets<Gltf>>()
-        .get(&gltf)
-        .and_then(|g| g.animations.first().cloned())
-        .ok_or("mannequin.glb has no clip")?;
-    let (graph, node) = AnimationGraph::from_clip(clip);
-    let graph = app
-        .world_mut()
-        .resource_mut::<Assets<AnimationGraph>>()
-        .add(graph);
     let players: Vec<Entity> = app
         .world_mut()
         .query_filtered::<Entity, With<AnimationPlayer>>()
         .iter(app.world())
         .collect();
-    if players.is_empty() || app.world().get::<MultiresSceneModels>(dancer).is_none() {
-        return Err("the mannequin was not converted".into());
-    }
-    for &p in &players {
-        app.world_mut()
-            .entity_mut(p)
-            .insert(AnimationGraphHandle(graph.clone()));
-        if let Some(mut player) = app.world_mut().get_mut::<AnimationPlayer>(p) {
-            player.play(node).repeat();
-        }
-    }
 
     // Change levels: a budget that swings up and down, two frames each, then settle.
     let mut blended = 0;

@@ -2,6 +2,8 @@
 //! loading a glTF character's clip, and offscreen screenshots.
 #![allow(dead_code)]
 
+pub mod terrain;
+
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::primitives::Aabb;
 use bevy::gltf::Gltf;
