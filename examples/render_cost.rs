@@ -70,7 +70,10 @@ fn main() {
             "--check" => check = args.next().map(PathBuf::from),
             "--cpu-building" => cpu_building = true,
             "--hysteresis" => {
-                hysteresis = args.next().and_then(|v| v.parse().ok()).unwrap_or(hysteresis)
+                hysteresis = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .unwrap_or(hysteresis)
             }
             // `cargo bench` and `cargo test` pass flags of their own.
             _ => {}
@@ -264,7 +267,11 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
         "grid" => grid_scene(hysteresis),
         "silvretta" => silvretta_scene(hysteresis),
         "aerobic" => aerobic_scene(hysteresis)?,
-        other => return Err(format!("unknown scene {other:?} (grid, silvretta or aerobic)")),
+        other => {
+            return Err(format!(
+                "unknown scene {other:?} (grid, silvretta or aerobic)"
+            ));
+        }
     };
     // Pipelines compile slowly on a software rasteriser: let them, and the levels, settle.
     for _ in 0..120 {
@@ -418,7 +425,9 @@ fn grid_scene(hysteresis: u32) -> Bench {
     let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
     let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
     let side = scene::side(MODELS);
-    let at: Vec<Vec3> = (0..MODELS).map(|i| scene::model_position(i, side)).collect();
+    let at: Vec<Vec3> = (0..MODELS)
+        .map(|i| scene::model_position(i, side))
+        .collect();
     add_model(&mut app, asset, &at);
     Bench {
         app,

@@ -78,4 +78,3 @@ pub fn terrain() -> IndexedMesh {
     mesh.normals = Some(normals);
     mesh
 }
-

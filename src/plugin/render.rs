@@ -29,7 +29,7 @@ use bevy::render::mesh::allocator::{
     ElementClass, MeshAllocationKey, MeshAllocator, MeshAllocatorSettings, allocate_and_free_meshes,
 };
 use bevy::render::mesh::{RenderMesh, RenderMeshBufferInfo};
-use bevy::render::render_asset::{RenderAssets, prepare_assets};
+use bevy::render::render_asset::{ExtractedAssets, RenderAssets, prepare_assets};
 use bevy::render::render_resource::{
     Buffer, BufferDescriptor, BufferUsages, COPY_BUFFER_ALIGNMENT, CommandEncoderDescriptor,
     IndexFormat,
@@ -187,6 +187,14 @@ pub struct RegionUploadStats {
 struct PendingWrites {
     batch: WriteBatch,
     deferred: WriteBatch,
+    /// The meshes Bevy unloads this frame: their deferred writes go with them.
+    removed: HashSet<AssetId<Mesh>>,
+}
+
+/// Notes the meshes Bevy unloads this frame, before `prepare_assets` drains the list.
+fn note_removed(extracted: Res<ExtractedAssets<RenderMesh>>, mut pending: ResMut<PendingWrites>) {
+    pending.removed.clear();
+    pending.removed.extend(extracted.removed.iter().copied());
 }
 
 impl RenderWrites {
@@ -296,6 +304,12 @@ pub(super) fn finish(app: &mut App) {
         .add_systems(ExtractSchedule, extract_writes)
         .add_systems(
             Render,
+            note_removed
+                .in_set(RenderSystems::PrepareAssets)
+                .before(prepare_assets::<RenderMesh>),
+        )
+        .add_systems(
+            Render,
             apply_writes
                 .in_set(RenderSystems::PrepareAssets)
                 .after(allocate_and_free_meshes)
@@ -334,6 +348,7 @@ fn apply_writes(
     // Deferred writes are older than this frame's: they go first, and a newer write of the
     // same mesh replaces them.
     let mut deferred = std::mem::take(&mut pending.deferred);
+    let removed = std::mem::take(&mut pending.removed);
     let batches = [&deferred, &pending.batch];
 
     // Replace the index allocations: the new size for each mesh, in one allocation stage
@@ -373,6 +388,8 @@ fn apply_writes(
                     }
                     ready.push((b, w, key, layout));
                 }
+                // A mesh that is gone (its model despawned) takes its writes along.
+                _ if removed.contains(&write.mesh) => {}
                 _ => {
                     let bytes = &batch.arena[write.bytes.clone()];
                     let start = later.arena.len();
@@ -463,6 +480,7 @@ fn apply_writes(
                     stats.vertex_bytes += bytes.len() as u64;
                     stats.vertex_writes += 1;
                 }
+                _ if removed.contains(&write.mesh) => {}
                 _ => {
                     let start = later.arena.len();
                     later.arena.extend_from_slice(bytes);
@@ -479,6 +497,7 @@ fn apply_writes(
     stats.deferred = (later.indices.len() + later.vertices.len()) as u32;
     deferred.clear();
     pending.deferred = later;
+    pending.removed = removed;
 }
 
 /// The bytes Bevy uploads again when a mesh is re-extracted: its whole vertex table and its
