@@ -10,12 +10,16 @@
 //! preparation:
 //!
 //! - index data: the region mesh's index allocation in the `MeshAllocator` is replaced by one
-//!   of the new size and the bytes copied in; `RenderMesh::buffer_info` takes the new count
-//!   (direct draws read it), and the main world marks the region entity's `Aabb` changed, so
-//!   Bevy rebuilds that instance's `MeshInputUniform` from the new slice (GPU preprocessing
-//!   reads the index range from there);
+//!   of the new size; `RenderMesh::buffer_info` takes the new count (direct draws read it),
+//!   and the main world marks the region entity's `Aabb` changed, so Bevy rebuilds that
+//!   instance's `MeshInputUniform` from the new slice (GPU preprocessing reads the index range
+//!   from there);
 //! - vertex data (skinned regions): the blended run of vertices is written in place into the
-//!   mesh's vertex slice, interleaved as Bevy packs it, with one `write_buffer`.
+//!   mesh's vertex slice, interleaved as Bevy packs it;
+//! - the frame's bytes go to the GPU in one staging write, then one copy per run of
+//!   destinations that follow each other, in one submission before the frame's draws.
+//!
+//! `docs/render-path.md` has the whole path and the Bevy change that would make it cheaper.
 //!
 //! Every view, pass and material draws the same `RenderMesh` and slices, so shadows,
 //! prepasses and several cameras see the change in the frame that asked for it; nothing is
@@ -44,8 +48,9 @@ use std::ops::Range;
 #[reflect(Resource, Default)]
 pub enum RegionUpload {
     /// Index data only (and the blended vertices of skinned regions), written into the mesh
-    /// allocator's buffers in the render world. Falls back to [`WholeMesh`](Self::WholeMesh)
-    /// in an app without a render sub-app, where nothing is drawn.
+    /// allocator's buffers in the render world. The region meshes change without
+    /// `AssetEvent::Modified` (an app without a render sub-app sees them change too, and
+    /// nothing is queued).
     #[default]
     IndicesOnly,
     /// Through `Assets::<Mesh>::get_mut`: Bevy re-extracts and re-uploads the whole region
