@@ -253,6 +253,8 @@ struct Frame {
     index_bytes: u64,
     changed: usize,
     copies: u32,
+    write_ms: f64,
+    blended: usize,
     frame_ms: f64,
     triangles: u64,
 }
@@ -314,6 +316,8 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
                     index_bytes: up.index_bytes,
                     changed: stats.regions_changed,
                     copies: up.copies,
+                    write_ms: up.write_ms,
+                    blended: stats.vertices_blended,
                     frame_ms,
                     triangles: stats.triangles,
                 });
@@ -338,9 +342,9 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
         std::thread::available_parallelism().map_or(0, usize::from)
     );
     println!(
-        "| upload | camera | ours ms | extract ms | prepare ms | instances ms | render world ms | mesh bytes to GPU | of which index bytes of changed regions | regions changed | GPU copies | frame ms | triangles |"
+        "| upload | camera | ours ms | extract ms | prepare ms | of which the plugin's writes ms | instances ms | render world ms | mesh bytes to GPU | of which index bytes of changed regions | regions changed | GPU copies | vertices blended | frame ms | triangles |"
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (mode, still, frames) in &rows {
         let med = |f: &dyn Fn(&Frame) -> f64| {
             let mut v: Vec<f64> = frames.iter().map(f).collect();
@@ -348,17 +352,19 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
             v[v.len() / 2]
         };
         println!(
-            "| {mode:?} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1} | {:.0} |",
+            "| {mode:?} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1} | {:.0} |",
             if *still { "still" } else { "moving" },
             med(&|f| f.ours_ms),
             med(&|f| f.cost.extract_ms),
             med(&|f| f.cost.prepare_ms),
+            med(&|f| f.write_ms),
             med(&|f| f.cost.instances_ms),
             med(&|f| f.cost.extract_ms + f.cost.prepare_ms + f.cost.instances_ms),
             med(&|f| (f.cost.bevy_bytes + f.region_bytes) as f64),
             med(&|f| f.index_bytes as f64),
             med(&|f| f.changed as f64),
             med(&|f| f64::from(f.copies)),
+            med(&|f| f.blended as f64),
             med(&|f| f.frame_ms),
             med(&|f| f.triangles as f64),
         );

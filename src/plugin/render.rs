@@ -171,8 +171,10 @@ pub(crate) struct RenderWrites {
 /// What the plugin wrote to the GPU for region meshes in the last rendered frame (a resource
 /// of the render world, reset each frame). Bevy's own uploads (new meshes, meshes changed
 /// through `Assets::get_mut`) are not counted here.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
 pub struct RegionUploadStats {
+    /// Milliseconds the render world spent on the writes (allocation, staging, copies).
+    pub write_ms: f64,
     /// Index bytes written.
     pub index_bytes: u64,
     /// Vertex bytes written (blended vertices of skinned regions).
@@ -345,6 +347,7 @@ fn apply_writes(
     mut staging: ResMut<Staging>,
     mut stats: ResMut<RegionUploadStats>,
 ) {
+    let start = bevy::platform::time::Instant::now();
     *stats = RegionUploadStats::default();
     let pending = &mut *pending;
     if pending.batch.is_empty() && pending.deferred.is_empty() {
@@ -499,6 +502,7 @@ fn apply_writes(
     }
     staging.submit(&device, &queue);
     stats.copies = staging.merged as u32;
+    stats.write_ms = start.elapsed().as_secs_f64() * 1e3;
     stats.deferred = (later.indices.len() + later.vertices.len()) as u32;
     deferred.clear();
     pending.deferred = later;
