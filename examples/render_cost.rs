@@ -556,7 +556,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     let patch = scene::patch(33);
     let grid = Partition::grid(&patch, GridPlane::XZ, 4, 4).expect("grid");
     let patch = MultiresMesh::from_indexed(&patch, &grid).map_err(|e| e.to_string())?;
-    let sphere = Mesh::from(Sphere::new(3.0).mesh().ico(5).map_err(|e| e.to_string())?);
+    let sphere = Sphere::new(3.0).mesh().ico(5).map_err(|e| e.to_string())?;
     let sphere = MultiresMesh::from_bevy_mesh(&sphere, PartitionSpec::Clusters(8))
         .map_err(|e| e.to_string())?;
     let (patch, sphere) = {

@@ -337,6 +337,7 @@ fn extract_writes(mut main: ResMut<MainWorld>, mut pending: ResMut<PendingWrites
 
 /// Writes the frame's index and vertex data into the mesh allocator's buffers, after Bevy
 /// has allocated and prepared the meshes it extracted this frame.
+#[allow(clippy::too_many_arguments)]
 fn apply_writes(
     mut pending: ResMut<PendingWrites>,
     mut allocator: ResMut<MeshAllocator>,
