@@ -6,7 +6,7 @@ APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libude
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
-.PHONY: demo silvretta test deps lint bench bench-bevy compare
+.PHONY: demo silvretta test deps lint bench bench-bevy bench-render compare
 
 deps:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -55,6 +55,13 @@ bench:
 # The Bevy benches (release builds of Bevy take long on small machines).
 bench-bevy: deps
 	$(CARGO) bench --bench plugin --bench skinned_crowd
+
+# What a level change costs the renderer, with rendering on (lavapipe without a GPU): the
+# 1,000-model scene, Silvretta and the aerobic class (docs/performance.md).
+bench-render: deps
+	$(CARGO) build --release --example render_cost
+	@for s in grid silvretta aerobic; do \
+		$(CARGO) run --release --quiet --example render_cost -- --scene $$s --frames 60; done
 
 # The command-line tool without Bevy: a release Bevy build would take long.
 compare:
