@@ -39,7 +39,6 @@ use bevy::render::render_resource::{
     IndexFormat,
 };
 use bevy::render::renderer::{RenderDevice, RenderQueue};
-use bevy::render::slab_allocator::Slab;
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
 use std::ops::Range;
 
@@ -206,23 +205,23 @@ fn note_removed(extracted: Res<ExtractedAssets<RenderMesh>>, mut pending: ResMut
 
 impl RenderWrites {
     /// Queues a region mesh's new index buffer (`indices` is the mesh's buffer after the
-    /// change).
-    pub(crate) fn indices(&mut self, mesh: AssetId<Mesh>, indices: &Indices) {
+    /// change); returns the bytes queued.
+    pub(crate) fn indices(&mut self, mesh: AssetId<Mesh>, indices: &Indices) -> usize {
+        let before = self.batch.arena.len();
         self.batch.push_indices(mesh, indices);
+        self.batch.arena.len() - before
     }
 
-    /// Bytes queued so far this frame.
-    pub(crate) fn queued_bytes(&self) -> usize {
-        self.batch.arena.len()
-    }
-
-    /// Queues the vertices of `mesh` from `lo` to `hi` (inclusive), as the mesh holds them.
-    pub(crate) fn vertices(&mut self, id: AssetId<Mesh>, mesh: &Mesh, lo: u32, hi: u32) {
+    /// Queues the vertices of `mesh` from `lo` to `hi` (inclusive), as the mesh holds them;
+    /// returns the bytes queued.
+    pub(crate) fn vertices(&mut self, id: AssetId<Mesh>, mesh: &Mesh, lo: u32, hi: u32) -> usize {
+        let before = self.batch.arena.len();
         if !self.batch.push_vertices(id, mesh, lo..hi + 1) {
             warn_once!(
                 "a skinned region mesh's vertex data cannot be read; its vertices are not updated"
             );
         }
+        self.batch.arena.len() - before
     }
 }
 
@@ -434,11 +433,9 @@ fn apply_writes(
         let batch = batches[b];
         let write = &batch.indices[w];
         let bytes = &batch.arena[write.bytes.clone()];
-        let large = allocator
-            .mesh_slabs(&write.mesh)
-            .and_then(|slabs| slabs.index_slab_id)
-            .and_then(|slab| allocator.slabs.get(&slab))
-            .is_some_and(|slab| matches!(slab, Slab::LargeObject(_)));
+        // The allocator gives data this large a slab of its own (its rule, on whole slots).
+        let large = (bytes.len() as u64).next_multiple_of(COPY_BUFFER_ALIGNMENT)
+            >= settings.large_threshold.min(settings.max_slab_size);
         if large {
             // A slab of its own is created with its data.
             allocator.copy_element_data(

@@ -765,13 +765,7 @@ impl UploadTarget<'_, '_, '_> {
         if self.writes.enabled
             && let Some(indices) = mesh.indices()
         {
-            self.bytes += indices.len() as u64
-                * if matches!(indices, Indices::U16(_)) {
-                    2
-                } else {
-                    4
-                };
-            self.writes.indices(id, indices);
+            self.bytes += self.writes.indices(id, indices) as u64;
         }
     }
 
@@ -792,9 +786,7 @@ impl UploadTarget<'_, '_, '_> {
             return;
         };
         if self.writes.enabled {
-            let before = self.writes.queued_bytes();
-            self.writes.vertices(id, mesh, lo, hi);
-            self.bytes += (self.writes.queued_bytes() - before) as u64;
+            self.bytes += self.writes.vertices(id, mesh, lo, hi) as u64;
         }
     }
 }
