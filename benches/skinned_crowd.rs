@@ -6,6 +6,8 @@
 //!
 //! `cargo bench --bench skinned_crowd`
 
+#[path = "common/clip.rs"]
+mod clip;
 mod common;
 
 use bevy::app::ScheduleRunnerPlugin;
@@ -17,9 +19,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
-use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, AslodViewport, MultiresScene, MultiresSceneModels,
-};
+use bevy_aslod::plugin::{AslodPlugin, AslodStats, AslodViewport, MultiresScene};
 use std::time::Duration;
 
 const TESTDATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/testdata/characters");
@@ -91,45 +91,8 @@ fn main() {
     ));
 
     // Load, convert, and start the clip on every player, out of phase.
-    let mut started = false;
-    for _ in 0..20_000 {
-        app.update();
-        let converted = roots
-            .iter()
-            .all(|&r| app.world().get::<MultiresSceneModels>(r).is_some());
-        let clip = app
-            .world()
-            .resource::<Assets<Gltf>>()
-            .get(&gltf)
-            .and_then(|g| g.named_animations.get("Dance").cloned());
-        let players: Vec<Entity> = app
-            .world_mut()
-            .query_filtered::<Entity, With<AnimationPlayer>>()
-            .iter(app.world())
-            .collect();
-        if let (true, Some(clip), true) = (converted, clip, players.len() >= COUNT) {
-            let (graph, node) = AnimationGraph::from_clip(clip);
-            let graph = app
-                .world_mut()
-                .resource_mut::<Assets<AnimationGraph>>()
-                .add(graph);
-            for (i, &p) in players.iter().enumerate() {
-                app.world_mut()
-                    .entity_mut(p)
-                    .insert(AnimationGraphHandle(graph.clone()));
-                app.world_mut()
-                    .get_mut::<AnimationPlayer>(p)
-                    .expect("player")
-                    .play(node)
-                    .repeat()
-                    .seek_to(i as f32 * 0.037);
-            }
-            started = true;
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    assert!(started, "the robots did not load and convert");
+    clip::start_clip(&mut app, &gltf, &roots, Some("Dance"), 0.037)
+        .expect("the robots load and convert");
 
     let mut rows = Vec::new();
     for paused in [false, true] {

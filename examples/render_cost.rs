@@ -17,6 +17,8 @@
 //! the two pairs of screenshots are compared. Writes the PNGs and `check.json` into DIR.
 //! `--cpu-building` turns Bevy's GPU mesh preprocessing off.
 
+#[path = "../benches/common/clip.rs"]
+mod clip;
 mod common;
 #[allow(dead_code)]
 #[path = "../benches/common/scene.rs"]
@@ -46,8 +48,7 @@ use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
-    MultiresScene, MultiresSceneModels, PartitionSpec, PolygonBudget, RegionUpload,
-    RegionUploadStats,
+    MultiresScene, PartitionSpec, PolygonBudget, RegionUpload, RegionUploadStats,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use std::path::{Path, PathBuf};
@@ -487,7 +488,7 @@ fn aerobic_scene(hysteresis: u32) -> Result<Bench, String> {
                 .id()
         })
         .collect();
-    start_clip(&mut app, &gltf, &dancers)?;
+    clip::start_clip(&mut app, &gltf, &dancers, None, 0.7)?;
     Ok(Bench {
         app,
         budget: 5_000,
@@ -499,46 +500,6 @@ fn aerobic_scene(hysteresis: u32) -> Result<Bench, String> {
                 .looking_at(Vec3::new(0.0, 0.9, 0.0), Vec3::Y)
         }),
     })
-}
-
-/// Runs the app until every scene root is converted and the glTF's first clip is loaded, then
-/// plays it on every player, out of phase.
-fn start_clip(app: &mut App, gltf: &Handle<Gltf>, roots: &[Entity]) -> Result<(), String> {
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(300) {
-        app.update();
-        let converted = roots
-            .iter()
-            .all(|&r| app.world().get::<MultiresSceneModels>(r).is_some());
-        let clip = app
-            .world()
-            .resource::<Assets<Gltf>>()
-            .get(gltf)
-            .and_then(|g| g.animations.first().cloned());
-        let players: Vec<Entity> = app
-            .world_mut()
-            .query_filtered::<Entity, With<AnimationPlayer>>()
-            .iter(app.world())
-            .collect();
-        if let (true, Some(clip), true) = (converted, clip, players.len() >= roots.len()) {
-            let (graph, node) = AnimationGraph::from_clip(clip);
-            let graph = app
-                .world_mut()
-                .resource_mut::<Assets<AnimationGraph>>()
-                .add(graph);
-            for (i, &p) in players.iter().enumerate() {
-                app.world_mut()
-                    .entity_mut(p)
-                    .insert(AnimationGraphHandle(graph.clone()));
-                if let Some(mut player) = app.world_mut().get_mut::<AnimationPlayer>(p) {
-                    player.play(node).repeat().seek_to(i as f32 * 0.7);
-                }
-            }
-            return Ok(());
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    Err("the scene did not load and convert in five minutes".into())
 }
 
 // ---------------------------------------------------------------------------------------
@@ -636,7 +597,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     let captures = Captures(Arc::new(Mutex::new(vec![None, None])));
     app.insert_resource(captures.clone());
     // The mannequin dances from the start.
-    start_clip(&mut app, &gltf, &[dancer])?;
+    clip::start_clip(&mut app, &gltf, &[dancer], None, 0.7)?;
 
     // Let the pipelines compile and the first levels land.
     let mut changes = 0usize;
