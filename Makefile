@@ -6,7 +6,7 @@ APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libude
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
-.PHONY: demo silvretta test deps lint bench bench-bevy bench-render compare
+.PHONY: demo silvretta test deps lint bench bench-bevy bench-render figure-11 compare
 
 deps:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -62,6 +62,13 @@ bench-render: deps
 	$(CARGO) build --release --example render_cost
 	@for s in grid silvretta aerobic; do \
 		$(CARGO) run --release --quiet --example render_cost -- --scene $$s --frames 60; done
+
+# ASLOD Figure 11 measured (docs/performance.md): the aerobic class at 960x540 (lavapipe is
+# bound by pixels there) and 240x135 (by geometry), 5 interleaved runs each, and the
+# 100-dancer crowd at 240x135, into out/figure_11. On a GPU, scripts/gpu_figure_11.sh alone
+# runs the paper's 1920x1080.
+figure-11: deps
+	SIZES=960x540,240x135 CROWD_SIZES=240x135 CARGO=$(CARGO) scripts/gpu_figure_11.sh out/figure_11
 
 # The command-line tool without Bevy: a release Bevy build would take long.
 compare:

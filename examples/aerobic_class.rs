@@ -13,24 +13,32 @@
 //!   `assets/mannequin.glb` and its first clip, "Aerobics").
 //! - `--count N`: N dancers (a crowd), at the same budget unless `--budget P` says otherwise.
 //! - `--headless --frames N --report DIR`: renders offscreen (an `Image` render target, no
-//!   window), plays the N scripted frames twice, with LOD and without, and writes
-//!   `frames.csv`, `frame_time.png` (Figure 11), `allocation.png`, three screenshots at the
-//!   first, middle and last frame (Figure 9; the middle one with the overlay) and
-//!   `summary.json` to DIR. `--size WIDTHxHEIGHT` sets the offscreen image (default 960x540).
+//!   window), plays the N scripted frames with LOD and without, and writes `frames.csv`,
+//!   `frame_time.png` (Figure 11), `allocation.png`, three screenshots at the first, middle
+//!   and last frame (Figure 9; the middle one with the overlay) and `summary.json` to DIR.
+//!   `--size WIDTHxHEIGHT` sets the offscreen image (default 960x540).
+//! - `--repeat R`: plays the scripted frames R times with LOD and R times without,
+//!   interleaved (LOD, no LOD, LOD, ...) so a slow phase of the machine hits both series.
+//!   `frames.csv` keeps every run; the chart and the summary use each frame's median over
+//!   the runs.
+//! - `--sizes WxH,WxH,...`: one report per size, each in its own folder `DIR/WxH` (the
+//!   example runs itself once per size), and `DIR/summary.json` holding every size's summary.
 //!
 //! Every frame of the scripted run is a function of its number: the camera's place and each
-//! dancer's animation time are set from it, so both runs show the same 120 frames.
+//! dancer's animation time are set from it, so every run shows the same frames.
 
 mod common;
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::RenderTarget;
-use bevy::camera::primitives::Aabb;
+use bevy::camera::primitives::{Aabb, Frustum};
 use bevy::gltf::Gltf;
+use bevy::math::{Affine3A, Vec3A};
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::budget::Obb;
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, CountInBudget, FullDetail, MultiresInstance,
     MultiresScene, MultiresSceneModels, PolygonBudget,
@@ -57,13 +65,23 @@ const MAX_LOADING: Duration = Duration::from_secs(180);
 const SCRIPT_SECONDS: f32 = 12.0;
 
 fn main() {
-    let args = match Args::parse(std::env::args().skip(1)) {
+    let raw: Vec<String> = std::env::args().skip(1).collect();
+    let args = match Args::parse(raw.iter().cloned()) {
         Ok(args) => args,
         Err(e) => {
             eprintln!("aerobic_class: {e}\n{USAGE}");
             std::process::exit(2);
         }
     };
+    if !args.sizes.is_empty() {
+        std::process::exit(match report_per_size(&args, &raw) {
+            Ok(()) => 0,
+            Err(e) => {
+                eprintln!("aerobic_class: {e}");
+                1
+            }
+        });
+    }
     let (asset_root, file) = match common::split_model_path(&args.model) {
         Ok(split) => split,
         Err(e) => {
@@ -96,7 +114,7 @@ fn main() {
             eprintln!("aerobic_class: cannot create {}: {e}", dir.display());
             std::process::exit(1);
         }
-        app.insert_resource(Report::new(dir, args.frames, args.size))
+        app.insert_resource(Report::new(dir, args.frames, args.repeat, args.size))
             .add_systems(Update, update_label.after(place_dancers))
             .add_systems(Last, drive_report);
     } else {
@@ -109,7 +127,8 @@ fn main() {
 }
 
 const USAGE: &str = "usage: aerobic_class [--model PATH] [--clip NAME] [--count N] [--budget P] \
-                     [--headless] [--frames N] [--report DIR] [--size WIDTHxHEIGHT]";
+                     [--headless] [--frames N] [--repeat R] [--report DIR] \
+                     [--size WIDTHxHEIGHT | --sizes WxH,WxH,...]";
 
 /// Command-line options.
 #[derive(Debug)]
@@ -122,6 +141,10 @@ struct Args {
     count: usize,
     budget: u32,
     size: (u32, u32),
+    /// Runs with LOD and without, interleaved.
+    repeat: u32,
+    /// One report per size (`--sizes`), each by a run of its own.
+    sizes: Vec<(u32, u32)>,
 }
 
 impl Args {
@@ -135,6 +158,8 @@ impl Args {
             count: 3,
             budget: BUDGET,
             size: SHOT_SIZE,
+            repeat: 1,
+            sizes: Vec::new(),
         };
         fn number<T: std::str::FromStr>(flag: &str, value: Option<String>) -> Result<T, String> {
             let value = value.ok_or(format!("{flag} needs a number"))?;
@@ -153,13 +178,16 @@ impl Args {
                 }
                 "--model" => out.model = args.next().ok_or("--model needs a path")?.into(),
                 "--clip" => out.clip = Some(args.next().ok_or("--clip needs a name")?),
+                "--repeat" => out.repeat = number("--repeat", args.next())?,
                 "--size" => {
-                    let size = args.next().ok_or("--size needs WIDTHxHEIGHT")?;
-                    out.size = size
-                        .split_once('x')
-                        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
-                        .filter(|&(w, h)| (16..=8192).contains(&w) && (16..=8192).contains(&h))
-                        .ok_or(format!("--size: not WIDTHxHEIGHT (16..=8192): {size}"))?;
+                    out.size = parse_size("--size", &args.next().ok_or("--size needs WxH")?)?;
+                }
+                "--sizes" => {
+                    let sizes = args.next().ok_or("--sizes needs WxH,WxH,...")?;
+                    out.sizes = sizes
+                        .split(',')
+                        .map(|s| parse_size("--sizes", s))
+                        .collect::<Result<_, _>>()?;
                 }
                 other => return Err(format!("unknown argument {other}")),
             }
@@ -173,8 +201,102 @@ impl Args {
         if out.budget == 0 {
             return Err("--budget must be positive".into());
         }
+        if !(1..=100).contains(&out.repeat) {
+            return Err(format!("--repeat must be 1..=100, not {}", out.repeat));
+        }
+        if !out.sizes.is_empty() && !out.headless {
+            return Err("--sizes writes reports: it needs --headless".into());
+        }
         Ok(out)
     }
+}
+
+/// `WIDTHxHEIGHT`, each side 16..=8192 pixels.
+fn parse_size(flag: &str, size: &str) -> Result<(u32, u32), String> {
+    size.split_once('x')
+        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+        .filter(|&(w, h)| (16..=8192).contains(&w) && (16..=8192).contains(&h))
+        .ok_or(format!("{flag}: not WIDTHxHEIGHT (16..=8192): {size}"))
+}
+
+/// `--sizes`: runs this example once per size, with the other arguments as given, each into
+/// `DIR/WxH`, then gathers their summaries into `DIR/summary.json`. Bevy's renderer is set
+/// up once per process, so each size gets a process of its own.
+fn report_per_size(args: &Args, raw: &[String]) -> Result<(), String> {
+    let dir = args
+        .report
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("aerobic-report"));
+    // Every argument but the size and report ones, which each run sets itself.
+    let mut rest = Vec::new();
+    let mut it = raw.iter();
+    while let Some(arg) = it.next() {
+        if matches!(arg.as_str(), "--sizes" | "--size" | "--report") {
+            it.next();
+        } else {
+            rest.push(arg.clone());
+        }
+    }
+    let exe = std::env::current_exe().map_err(|e| format!("cannot find this program: {e}"))?;
+    let mut summaries = serde_json::Map::new();
+    for &(w, h) in &args.sizes {
+        let name = format!("{w}x{h}");
+        let sub = dir.join(&name);
+        eprintln!("aerobic_class: {name} into {}", sub.display());
+        let status = std::process::Command::new(&exe)
+            .args(&rest)
+            .args(["--size", &name, "--report"])
+            .arg(&sub)
+            .status()
+            .map_err(|e| format!("cannot run {}: {e}", exe.display()))?;
+        if !status.success() {
+            return Err(format!("the {name} run failed: {status}"));
+        }
+        let path = sub.join("summary.json");
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let summary =
+            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        summaries.insert(name, summary);
+    }
+    let path = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&serde_json::json!({ "sizes": summaries }))
+        .map_err(|e| e.to_string())?;
+    std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    eprintln!("aerobic_class: every size's summary in {}", path.display());
+    println!(
+        "{:>10} {:>9} {:>9} {:>6} {:>7} {:>7} {:>9} {:>9} {:>7} {:>7} {:>6}",
+        "size",
+        "LOD ms",
+        "full ms",
+        "ratio",
+        "CV LOD",
+        "CV full",
+        "noise LOD",
+        "noise full",
+        "r LOD",
+        "r full",
+        "steal"
+    );
+    for (name, summary) in &summaries {
+        let get = |series: &str, key: &str| summary[series][key].as_f64().unwrap_or(f64::NAN);
+        let (with, without) = (
+            get("with_lod", "median_ms"),
+            get("without_lod", "median_ms"),
+        );
+        println!(
+            "{name:>10} {with:>9.2} {without:>9.2} {:>6.2} {:>6.1}% {:>6.1}% {:>9.2} {:>9.2} {:>7.2} {:>7.2} {:>5.1}%",
+            with / without,
+            100.0 * get("with_lod", "cv"),
+            100.0 * get("without_lod", "cv"),
+            get("with_lod", "run_to_run_ms"),
+            get("without_lod", "run_to_run_ms"),
+            get("with_lod", "in_view_correlation"),
+            get("without_lod", "in_view_correlation"),
+            50.0 * (get("with_lod", "cpu_steal") + get("without_lod", "cpu_steal")),
+        );
+    }
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -561,16 +683,64 @@ fn dancer_triangles(
         .collect()
 }
 
+/// Triangles the dancers would show at full detail in `frustum`: every region whose box (as
+/// the last `Allocate` saw it, moved with its bones) meets the frustum counts all its
+/// triangles, and each dancer's fixed meshes count whole.
+fn full_detail_in_view(
+    class: &Class,
+    roots: &Query<&MultiresSceneModels, With<Dancer>>,
+    instances: &Query<&MultiresInstance>,
+    region_boxes: &Query<(&Aabb, &GlobalTransform)>,
+    frustum: &Frustum,
+) -> u64 {
+    let meets = |obb: &Obb| {
+        let local = Aabb {
+            center: Vec3A::ZERO,
+            half_extents: obb.half_extents.into(),
+        };
+        frustum.intersects_obb(
+            &local,
+            &Affine3A::from_mat3_translation(obb.axes, obb.center),
+            true,
+            false,
+        )
+    };
+    let mut total = 0;
+    for (i, &d) in class.dancers.iter().enumerate() {
+        total += class.fixed[i] as u64;
+        let Ok(models) = roots.get(d) else {
+            continue;
+        };
+        for instance in models.models().filter_map(|m| instances.get(m).ok()) {
+            let regions = instance.regions().regions();
+            for (r, region) in regions.iter().enumerate() {
+                let seen = match instance.skinned_world_boxes() {
+                    Some(boxes) => boxes.get(r).is_some_and(meets),
+                    None => instance.region_entities().get(r).is_some_and(|&e| {
+                        region_boxes.get(e).is_ok_and(|(aabb, transform)| {
+                            frustum.intersects_obb(aabb, &transform.affine(), true, false)
+                        })
+                    }),
+                };
+                if seen {
+                    total += region.max_triangles() as u64;
+                }
+            }
+        }
+    }
+    total
+}
+
 /// Sets the camera and every dancer's pose for scripted frame `frame` of `frames`.
 fn apply_frame(
     class: &Class,
     frame: u32,
     frames: u32,
-    camera: &mut Query<&mut Transform, With<MainCamera>>,
+    camera: &mut Query<(&mut Transform, &Frustum), With<MainCamera>>,
     players: &mut Query<(&DancerPlayer, &mut AnimationPlayer)>,
 ) {
     let u = frame.saturating_sub(1) as f32 / (frames - 1).max(1) as f32;
-    if let Ok(mut transform) = camera.single_mut() {
+    if let Ok((mut transform, _)) = camera.single_mut() {
         *transform = class.camera_at(u);
     }
     let Some((_, node, _)) = class.clip else {
@@ -729,8 +899,14 @@ enum Stage {
     /// Rendering frame 1 until a screenshot shows something (pipelines compile slowly on a
     /// software rasteriser).
     Warmup,
-    /// Running the scripted frames; `frame` 0 is the settling before frame 1.
-    Run { lod: bool, frame: u32, settle: u32 },
+    /// Running the scripted frames of run `run` (0-based); `frame` 0 is the settling before
+    /// frame 1.
+    Run {
+        lod: bool,
+        run: u32,
+        frame: u32,
+        settle: u32,
+    },
     /// Taking screenshot `index` of [`Report::shots`].
     Shots { index: usize },
     /// Writing the report.
@@ -745,6 +921,9 @@ struct Row {
     ms: f64,
     dancers: Vec<usize>,
     total: u64,
+    /// Triangles the dancers would show at full detail in the camera's view (regions whose
+    /// box meets the frustum, plus fixed meshes): what a frame without LOD has to draw.
+    in_view: u64,
     /// The plugin's own CPU time: Allocate, Deform, SelectLod + Upload.
     allocate_ms: f64,
     deform_ms: f64,
@@ -757,10 +936,13 @@ struct Report {
     frames: u32,
     /// Offscreen image size.
     size: (u32, u32),
+    /// Runs of the scripted frames per series (`--repeat`).
+    repeat: u32,
     stage: Stage,
     last: Option<Instant>,
-    lod: Vec<Row>,
-    no_lod: Vec<Row>,
+    /// Per run, its frames: with LOD and without.
+    lod: Vec<Vec<Row>>,
+    no_lod: Vec<Vec<Row>>,
     /// (frame, with overlay)
     shots: Vec<(u32, bool)>,
     wait: u32,
@@ -773,14 +955,73 @@ struct Report {
     /// Screenshots taken, and the names of those saved.
     shots_done: usize,
     saved: Vec<String>,
+    /// The machine's CPU time (`/proc/stat`) when the current run's frame 1 began, and per
+    /// series (LOD, no LOD) the CPU time summed over its runs' frames.
+    cpu_mark: Option<CpuTimes>,
+    cpu: [CpuTimes; 2],
+}
+
+/// The whole machine's CPU time in clock ticks, from the first line of Linux's `/proc/stat`:
+/// all of it, idle, and stolen by the hypervisor (a virtual machine's host running something
+/// else). Zero where there is no `/proc/stat`.
+#[derive(Clone, Copy, Debug, Default)]
+struct CpuTimes {
+    total: u64,
+    idle: u64,
+    steal: u64,
+}
+
+impl CpuTimes {
+    fn now() -> Self {
+        let Ok(stat) = std::fs::read_to_string("/proc/stat") else {
+            return Self::default();
+        };
+        // cpu user nice system idle iowait irq softirq steal guest guest_nice
+        let ticks: Vec<u64> = stat
+            .lines()
+            .next()
+            .unwrap_or("")
+            .split_whitespace()
+            .skip(1)
+            .filter_map(|t| t.parse().ok())
+            .collect();
+        let at = |i: usize| ticks.get(i).copied().unwrap_or(0);
+        Self {
+            // guest time is counted in user time already.
+            total: ticks.iter().take(8).sum(),
+            idle: at(3) + at(4),
+            steal: at(7),
+        }
+    }
+
+    fn since(self, start: Self) -> Self {
+        Self {
+            total: self.total.saturating_sub(start.total),
+            idle: self.idle.saturating_sub(start.idle),
+            steal: self.steal.saturating_sub(start.steal),
+        }
+    }
+
+    fn add(&mut self, other: Self) {
+        self.total += other.total;
+        self.idle += other.idle;
+        self.steal += other.steal;
+    }
+
+    /// Idle and stolen shares of the time (NaN without `/proc/stat`).
+    fn shares(self) -> (f64, f64) {
+        let total = self.total as f64;
+        (self.idle as f64 / total, self.steal as f64 / total)
+    }
 }
 
 impl Report {
-    fn new(dir: PathBuf, frames: u32, size: (u32, u32)) -> Self {
+    fn new(dir: PathBuf, frames: u32, repeat: u32, size: (u32, u32)) -> Self {
         Self {
             dir,
             frames,
             size,
+            repeat,
             stage: Stage::Loading,
             last: None,
             lod: Vec::new(),
@@ -793,6 +1034,8 @@ impl Report {
             loading_since: None,
             shots_done: 0,
             saved: Vec::new(),
+            cpu_mark: None,
+            cpu: [CpuTimes::default(); 2],
         }
     }
 }
@@ -809,7 +1052,8 @@ fn drive_report(
     target: Option<Res<ShotTarget>>,
     roots: Query<&MultiresSceneModels, With<Dancer>>,
     instances: Query<&MultiresInstance>,
-    mut camera: Query<&mut Transform, With<MainCamera>>,
+    region_boxes: Query<(&Aabb, &GlobalTransform)>,
+    mut camera: Query<(&mut Transform, &Frustum), With<MainCamera>>,
     mut players: Query<(&DancerPlayer, &mut AnimationPlayer)>,
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -849,6 +1093,7 @@ fn drive_report(
             if report.drawn {
                 report.stage = Stage::Run {
                     lod: true,
+                    run: 0,
                     frame: 0,
                     settle: SETTLE_FRAMES,
                 };
@@ -857,39 +1102,69 @@ fn drive_report(
                 request_shot(&mut commands, &mut report, target.as_deref());
             }
         }
-        Stage::Run { lod, frame, settle } => {
+        Stage::Run {
+            lod,
+            run,
+            frame,
+            settle,
+        } => {
             if frame > 0 {
+                let in_view = camera.single().map_or(0, |(_, frustum)| {
+                    full_detail_in_view(&class, &roots, &instances, &region_boxes, frustum)
+                });
                 let row = Row {
                     ms: period.unwrap_or(0.0),
                     dancers: dancer_triangles(&class, &roots, &instances),
                     total: stats.triangles + u64::from(stats.fixed_cost),
+                    in_view,
                     allocate_ms: stats.allocation_ms,
                     deform_ms: stats.deform_ms,
                     update_ms: stats.update_ms,
                 };
-                if lod {
-                    report.lod.push(row);
+                let series = if lod {
+                    &mut report.lod
                 } else {
-                    report.no_lod.push(row);
+                    &mut report.no_lod
+                };
+                if series.len() <= run as usize {
+                    series.push(Vec::new());
                 }
+                series[run as usize].push(row);
             }
+            // Settle, then the frames; after a series' run the other series' same run, LOD
+            // first (LOD, no LOD, LOD, ...).
             let next = if settle > 0 {
                 Stage::Run {
                     lod,
+                    run,
                     frame: 0,
                     settle: settle - 1,
                 }
             } else if frame < frames {
                 Stage::Run {
                     lod,
+                    run,
                     frame: frame + 1,
                     settle: 0,
                 }
             } else if lod {
-                info!("with LOD done; now the same frames at full detail");
+                info!(
+                    "run {} of {} with LOD done; now at full detail",
+                    run + 1,
+                    report.repeat
+                );
                 full_detail.0 = true;
                 Stage::Run {
                     lod: false,
+                    run,
+                    frame: 0,
+                    settle: SETTLE_FRAMES,
+                }
+            } else if run + 1 < report.repeat {
+                full_detail.0 = false;
+                Stage::Run {
+                    lod: true,
+                    run: run + 1,
                     frame: 0,
                     settle: SETTLE_FRAMES,
                 }
@@ -898,6 +1173,16 @@ fn drive_report(
                 report.wait = 4;
                 Stage::Shots { index: 0 }
             };
+            // The machine's CPU time over each run's measured frames (the frame that ends
+            // here was set up in the previous call).
+            if frame == frames && settle == 0 {
+                if let Some(mark) = report.cpu_mark.take() {
+                    report.cpu[usize::from(!lod)].add(CpuTimes::now().since(mark));
+                }
+            }
+            if let Stage::Run { frame: 1, .. } = next {
+                report.cpu_mark = Some(CpuTimes::now());
+            }
             report.stage = next;
             if let Stage::Run { frame, .. } = next {
                 apply_frame(&class, frame.max(1), frames, &mut camera, &mut players);
@@ -992,67 +1277,173 @@ fn on_captured(captured: On<ScreenshotCaptured>, mut report: ResMut<Report>) {
     }
 }
 
-/// Median, 95th percentile (nearest rank) and coefficient of variation.
-fn frame_stats(rows: &[Row]) -> serde_json::Value {
-    let mut ms: Vec<f64> = rows.iter().map(|r| r.ms).collect();
-    if ms.is_empty() {
+/// The median of `values` (NaN when empty).
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => (v[n / 2 - 1] + v[n / 2]) * 0.5,
+    }
+}
+
+/// Mean and coefficient of variation (population standard deviation over the mean).
+fn mean_cv(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    (
+        mean,
+        if mean > 0.0 {
+            variance.sqrt() / mean
+        } else {
+            f64::NAN
+        },
+    )
+}
+
+/// Pearson's correlation of two equally long series (NaN when either is constant).
+fn correlation(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len()) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx).powi(2);
+        syy += (b - my).powi(2);
+    }
+    sxy / (sxx * syy).sqrt()
+}
+
+/// Each frame's median time over the runs.
+fn per_frame_medians(runs: &[Vec<Row>], frames: usize) -> Vec<f64> {
+    (0..frames)
+        .map(|f| median(&runs.iter().map(|run| run[f].ms).collect::<Vec<_>>()))
+        .collect()
+}
+
+/// One series' frame times over its runs (each `frames` long):
+/// - `median_ms`, `p95_ms` (nearest rank), `mean_ms` and `cv` of the per-frame medians: the
+///   systematic part, what the scripted frames themselves cost;
+/// - `cv_all_frames`: the CV of every frame of every run, noise included;
+/// - `run_to_run_ms`: the median absolute difference between two runs of the same frame (every
+///   pair of runs; null with one run), and `frame_to_frame_ms`, between neighbouring frames of
+///   a run: the noise;
+/// - `cv_noise` and `cv_systematic`: how much of `cv` the noise explains and what is left,
+///   estimated (null with one run): noise of standard deviation σ (from `run_to_run_ms`,
+///   which is 0.954σ for normal noise) moves a median of R runs by about σ/√R for R ≤ 2 and
+///   σ·√(π/2R) above, and the two variances add;
+/// - `in_view_correlation`: Pearson's correlation of the per-frame medians with the
+///   full-detail triangles in view.
+///
+/// `write_report` adds `cpu_idle` and `cpu_steal`: the machine's idle share and the share its
+/// hypervisor stole during the series' frames (`/proc/stat`; null without it).
+fn frame_stats(runs: &[Vec<Row>], frames: usize, in_view: &[f64]) -> serde_json::Value {
+    if runs.is_empty() || frames == 0 {
         return serde_json::Value::Null;
     }
-    ms.sort_by(f64::total_cmp);
-    let rank = |q: f64| ms[((q * ms.len() as f64).ceil() as usize).clamp(1, ms.len()) - 1];
-    let median = if ms.len() % 2 == 1 {
-        ms[ms.len() / 2]
+    let medians = per_frame_medians(runs, frames);
+    let mut sorted = medians.clone();
+    sorted.sort_by(f64::total_cmp);
+    let p95 = sorted[((0.95 * frames as f64).ceil() as usize).clamp(1, frames) - 1];
+    let (mean, cv) = mean_cv(&medians);
+    let every: Vec<f64> = runs
+        .iter()
+        .flat_map(|r| r[..frames].iter().map(|r| r.ms))
+        .collect();
+    let mut pairs = Vec::new();
+    for f in 0..frames {
+        for (i, a) in runs.iter().enumerate() {
+            for b in &runs[i + 1..] {
+                pairs.push((a[f].ms - b[f].ms).abs());
+            }
+        }
+    }
+    let run_to_run = median(&pairs);
+    let r = runs.len() as f64;
+    let spread = if runs.len() <= 2 {
+        1.0 / r.sqrt()
     } else {
-        (ms[ms.len() / 2 - 1] + ms[ms.len() / 2]) * 0.5
+        (std::f64::consts::PI / (2.0 * r)).sqrt()
     };
-    let mean = ms.iter().sum::<f64>() / ms.len() as f64;
-    let variance = ms.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / ms.len() as f64;
+    let cv_noise = spread * run_to_run / 0.954 / mean;
+    let steps: Vec<f64> = runs
+        .iter()
+        .flat_map(|r| r[..frames].windows(2).map(|w| (w[1].ms - w[0].ms).abs()))
+        .collect();
     serde_json::json!({
-        "median_ms": median,
-        "p95_ms": rank(0.95),
+        "runs": runs.len(),
+        "median_ms": median(&medians),
+        "p95_ms": p95,
         "mean_ms": mean,
-        "cv": if mean > 0.0 { variance.sqrt() / mean } else { 0.0 },
+        "cv": cv,
+        "cv_all_frames": mean_cv(&every).1,
+        "cv_noise": cv_noise,
+        // NaN (null) with one run, like the noise.
+        "cv_systematic": if cv_noise.is_nan() {
+            f64::NAN
+        } else {
+            (cv * cv - cv_noise * cv_noise).max(0.0).sqrt()
+        },
+        "run_to_run_ms": run_to_run,
+        "frame_to_frame_ms": median(&steps),
+        "in_view_correlation": correlation(&medians, in_view),
     })
 }
 
 fn write_report(report: &Report, class: &Class) -> Result<(), String> {
     let n = class.dancers.len();
-    let frames = report.lod.len().min(report.no_lod.len());
+    let runs = report.lod.len().min(report.no_lod.len());
+    let frames = report.lod[..runs]
+        .iter()
+        .chain(&report.no_lod[..runs])
+        .map(Vec::len)
+        .min()
+        .unwrap_or(0);
     if frames == 0 {
         return Err("no frames were recorded".into());
     }
-    // frames.csv
-    let mut csv = String::from("frame,frame_ms");
+    // frames.csv: every run, LOD and no-LOD side by side.
+    let mut csv = String::from("run,frame,frame_ms");
     for i in 0..n {
         csv += &format!(",mannequin_{}", i + 1);
     }
-    csv += ",total,no_lod_frame_ms,no_lod_total,allocate_ms,deform_ms,update_ms,no_lod_deform_ms,no_lod_update_ms\n";
-    for f in 0..frames {
-        let (a, b) = (&report.lod[f], &report.no_lod[f]);
-        csv += &format!("{},{:.3}", f + 1, a.ms);
-        for c in &a.dancers {
-            csv += &format!(",{c}");
+    csv += ",total,no_lod_frame_ms,no_lod_total,in_view_full_detail,allocate_ms,deform_ms,update_ms,no_lod_deform_ms,no_lod_update_ms\n";
+    for run in 0..runs {
+        for f in 0..frames {
+            let (a, b) = (&report.lod[run][f], &report.no_lod[run][f]);
+            csv += &format!("{},{},{:.3}", run + 1, f + 1, a.ms);
+            for c in &a.dancers {
+                csv += &format!(",{c}");
+            }
+            csv += &format!(
+                ",{},{:.3},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
+                a.total,
+                b.ms,
+                b.total,
+                b.in_view,
+                a.allocate_ms,
+                a.deform_ms,
+                a.update_ms,
+                b.deform_ms,
+                b.update_ms
+            );
         }
-        csv += &format!(
-            ",{},{:.3},{},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
-            a.total,
-            b.ms,
-            b.total,
-            a.allocate_ms,
-            a.deform_ms,
-            a.update_ms,
-            b.deform_ms,
-            b.update_ms
-        );
     }
     let path = report.dir.join("frames.csv");
     std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
 
-    // summary.json
-    let lod = &report.lod[..frames];
-    let no_lod = &report.no_lod[..frames];
-    let largest = lod.iter().map(|r| r.total).max().unwrap_or(0);
-    let smallest = lod.iter().map(|r| r.total).min().unwrap_or(0);
+    // summary.json. Every run shows the same frames, so the triangle counts of the first
+    // run stand for all of them (the budget targets are checked over every run).
+    let every_lod: Vec<&Row> = report.lod[..runs]
+        .iter()
+        .flat_map(|r| &r[..frames])
+        .collect();
+    let lod = &report.lod[0][..frames];
+    let no_lod = &report.no_lod[0][..frames];
+    let largest = every_lod.iter().map(|r| r.total).max().unwrap_or(0);
+    let smallest = every_lod.iter().map(|r| r.total).min().unwrap_or(0);
     let full_above = (0..frames).filter(|&f| no_lod[f].total > u64::from(class.budget));
     let filled = full_above
         .clone()
@@ -1085,8 +1476,14 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
             })
         })
         .collect();
-    let with = frame_stats(lod);
-    let without = frame_stats(no_lod);
+    let in_view: Vec<f64> = no_lod.iter().map(|r| r.in_view as f64).collect();
+    let mut with = frame_stats(&report.lod[..runs], frames, &in_view);
+    let mut without = frame_stats(&report.no_lod[..runs], frames, &in_view);
+    for (series, cpu) in [(&mut with, report.cpu[0]), (&mut without, report.cpu[1])] {
+        let (idle, steal) = cpu.shares();
+        series["cpu_idle"] = idle.into();
+        series["cpu_steal"] = steal.into();
+    }
     let get = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
     let cv_bound = (get(&without, "cv") / 3.0).max(0.05);
     let targets = serde_json::json!({
@@ -1102,6 +1499,7 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
         "dancers": n,
         "budget": class.budget,
         "frames": frames,
+        "repeat": runs,
         "screen": [report.size.0, report.size.1],
         "build": if cfg!(debug_assertions) { "debug" } else { "release" },
         "with_lod": with,
@@ -1110,6 +1508,8 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
         "smallest_total": smallest,
         "smallest_total_when_full_detail_exceeds_budget": smallest_when_full_above,
         "full_detail_total": no_lod.iter().map(|r| r.total).max(),
+        "full_detail_in_view_min": no_lod.iter().map(|r| r.in_view).min(),
+        "full_detail_in_view_max": no_lod.iter().map(|r| r.in_view).max(),
         "mannequins": dancers,
         "targets": targets,
         "screenshots": report.saved,
@@ -1121,9 +1521,20 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
 
     charts::frame_time(
         &report.dir.join("frame_time.png"),
-        lod,
-        no_lod,
-        class.budget,
+        &charts::Series {
+            runs: &report.lod[..runs],
+            medians: per_frame_medians(&report.lod[..runs], frames),
+            label: format!("with LOD (P = {} triangles)", class.budget),
+        },
+        &charts::Series {
+            runs: &report.no_lod[..runs],
+            medians: per_frame_medians(&report.no_lod[..runs], frames),
+            label: format!(
+                "no LOD ({} triangles)",
+                no_lod.iter().map(|r| r.total).max().unwrap_or(0)
+            ),
+        },
+        report.size,
     )?;
     charts::allocation(&report.dir.join("allocation.png"), lod, class.budget)?;
     Ok(())
@@ -1193,19 +1604,40 @@ mod charts {
         save(path, &rgb)
     }
 
-    /// Figure 11: frame time per frame, with LOD and at full detail.
-    pub fn frame_time(path: &Path, lod: &[Row], no_lod: &[Row], budget: u32) -> Result<(), String> {
-        let frames = lod.len() as u32;
+    /// One series of the frame-time chart: its runs and each frame's median over them.
+    pub struct Series<'a> {
+        pub runs: &'a [Vec<Row>],
+        pub medians: Vec<f64>,
+        pub label: String,
+    }
+
+    /// Figure 11: frame time per frame, with LOD and at full detail; each frame's median over
+    /// the runs as a line, every run's frames as faint dots behind it.
+    pub fn frame_time(
+        path: &Path,
+        lod: &Series<'_>,
+        no_lod: &Series<'_>,
+        size: (u32, u32),
+    ) -> Result<(), String> {
+        let frames = lod.medians.len() as u32;
+        // Outliers in single runs would flatten the medians: the axis stops above the largest
+        // median (dots above it are drawn at the top edge).
         let top = lod
+            .medians
             .iter()
-            .chain(no_lod)
-            .map(|r| r.ms)
+            .chain(&no_lod.medians)
+            .copied()
             .fold(1.0f64, f64::max)
-            * 1.1;
-        let full = no_lod.iter().map(|r| r.total).max().unwrap_or(0);
+            * 1.25;
+        let runs = lod.runs.len();
+        let caption = if runs > 1 {
+            format!("Frame time, {}x{}: median of {runs} runs", size.0, size.1)
+        } else {
+            format!("Frame time per frame, {}x{}", size.0, size.1)
+        };
         draw(path, |root| {
             let mut chart = ChartBuilder::on(root)
-                .caption("Frame time per frame", ("sans-serif", 26))
+                .caption(caption, ("sans-serif", 26))
                 .margin(16)
                 .x_label_area_size(48)
                 .y_label_area_size(64)
@@ -1220,18 +1652,31 @@ mod charts {
                 .label_style(("sans-serif", 15))
                 .draw()
                 .map_err(|e| e.to_string())?;
-            let series = [
-                (lod, RED, format!("with LOD (P = {budget} triangles)")),
-                (no_lod, BLUE, format!("no LOD ({full} triangles)")),
-            ];
-            for (rows, color, label) in series {
+            for (series, color) in [(lod, RED), (no_lod, BLUE)] {
+                if runs > 1 {
+                    chart
+                        .draw_series(series.runs.iter().flat_map(|run| {
+                            run.iter().enumerate().map(move |(f, r)| {
+                                Circle::new(
+                                    (f as u32 + 1, r.ms.min(top)),
+                                    2,
+                                    color.mix(0.3).filled(),
+                                )
+                            })
+                        }))
+                        .map_err(|e| e.to_string())?;
+                }
                 chart
                     .draw_series(LineSeries::new(
-                        rows.iter().enumerate().map(|(f, r)| (f as u32 + 1, r.ms)),
+                        series
+                            .medians
+                            .iter()
+                            .enumerate()
+                            .map(|(f, &ms)| (f as u32 + 1, ms)),
                         color.stroke_width(2),
                     ))
                     .map_err(|e| e.to_string())?
-                    .label(label)
+                    .label(series.label.clone())
                     .legend(move |(x, y)| {
                         PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(2))
                     });
