@@ -1175,10 +1175,11 @@ fn drive_report(
             };
             // The machine's CPU time over each run's measured frames (the frame that ends
             // here was set up in the previous call).
-            if frame == frames && settle == 0 {
-                if let Some(mark) = report.cpu_mark.take() {
-                    report.cpu[usize::from(!lod)].add(CpuTimes::now().since(mark));
-                }
+            if frame == frames
+                && settle == 0
+                && let Some(mark) = report.cpu_mark.take()
+            {
+                report.cpu[usize::from(!lod)].add(CpuTimes::now().since(mark));
             }
             if let Stage::Run { frame: 1, .. } = next {
                 report.cpu_mark = Some(CpuTimes::now());
