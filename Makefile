@@ -6,7 +6,7 @@ APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libude
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
-.PHONY: demo silvretta test deps lint bench bench-bevy bench-render figure-11 compare
+.PHONY: demo silvretta test check-deps deps lint bench bench-bevy bench-render figure-11 compare
 
 deps:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -39,14 +39,26 @@ silvretta: deps
 		cat out/silvretta/counts.json; \
 	fi
 
-test: deps
-	$(CARGO) test --no-default-features --lib --tests
-	$(CARGO) test --all-targets
-	$(CARGO) test --doc
+test: deps check-deps
+	$(CARGO) test --no-default-features --features mannequin,distance --lib --tests
+	$(CARGO) test --all-features --all-targets
+	$(CARGO) test --all-features --doc
+
+# What `cargo add bevy_aslod` pulls: Bevy, glam, gltf, thiserror and log (and bytemuck, which
+# Bevy has anyway), so no meshopt (a C++ build), clap or indicatif: those are the `cli`
+# feature's.
+DEFAULT_DEPS := bevy bytemuck glam gltf log thiserror
+check-deps:
+	@direct=$$($(CARGO) tree -e normal --depth 1 --prefix none --format '{p}' | sed 1d | cut -d' ' -f1 | sort -u | tr '\n' ' '); \
+	if [ "$$direct" != "$(DEFAULT_DEPS) " ]; then \
+		echo "the default build's dependencies are [$$direct], expected [$(DEFAULT_DEPS)]"; exit 1; fi; \
+	if $(CARGO) tree -e normal --prefix none --format '{p}' | grep -q '^meshopt'; then \
+		echo "the default build compiles meshopt (C++)"; exit 1; fi; \
+	echo "default dependencies: $$direct"
 
 lint:
 	$(CARGO) fmt --all -- --check
-	$(CARGO) clippy --all-targets -- -D warnings
+	$(CARGO) clippy --all-features --all-targets -- -D warnings
 	$(CARGO) clippy --no-default-features --lib --tests -- -D warnings
 
 bench:

@@ -16,8 +16,18 @@ pub fn example_binary(name: &str) -> PathBuf {
     let binary = profile_dir
         .join("examples")
         .join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    // The features this test was built with, so the library is not built a second time.
+    let features: Vec<&str> = [
+        ("bevy", cfg!(feature = "bevy")),
+        ("cli", cfg!(feature = "cli")),
+        ("mannequin", cfg!(feature = "mannequin")),
+        ("distance", cfg!(feature = "distance")),
+    ]
+    .into_iter()
+    .filter_map(|(name, on)| on.then_some(name))
+    .collect();
     let status = Command::new(env!("CARGO"))
-        .args(["build", "--example", name, "--features", "bevy"])
+        .args(["build", "--example", name, "--features", &features.join(",")])
         .args(if profile_dir.ends_with("release") {
             &["--release"][..]
         } else {

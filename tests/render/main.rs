@@ -7,6 +7,7 @@
 mod example_run;
 
 mod aerobic_class;
+mod basic;
 mod level_changes;
 mod silvretta;
 mod skinned_character;
