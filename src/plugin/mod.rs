@@ -57,6 +57,7 @@ mod render;
 mod scene;
 mod skin;
 mod systems;
+mod tasks;
 
 pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};

@@ -13,7 +13,7 @@
 //!   way their own region places them (a rigid vertex by its bone alone), converted into the
 //!   drawing region's space, so both sides of a border put a shared vertex at one position.
 
-use super::systems::par_chunks;
+use super::tasks::par_chunks;
 use super::{MultiresError, MultiresMesh};
 use crate::budget::Obb;
 use crate::mesh::{IndexedMesh, weld_positions};

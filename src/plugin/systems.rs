@@ -7,7 +7,8 @@ use super::{
     MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
-use crate::budget::{Allocator, Executor, Obb, ProjectedAreaCamera, RegionInput};
+use super::tasks::{ComputePool, par_chunks};
+use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
 use bevy::asset::AssetId;
@@ -19,42 +20,12 @@ use bevy::mesh::Indices;
 use bevy::mesh::VertexAttributeValues;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
-use bevy::tasks::{ComputeTaskPool, ParallelSliceMut, TaskPool};
 use bevy::transform::TransformSystems;
 
 /// Where every [`MultiresMaterialPlugin`](super::MultiresMaterialPlugin) copies its model
 /// materials to the regions: in [`AslodSystems::Spawn`], after the regions are made.
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(super) struct MaterialSystems;
-
-/// Runs `f` over `items` in chunks on the compute task pool and returns its results, one per
-/// chunk. There are enough chunks for every compute thread and for the calling thread too:
-/// the plugin's heavy systems run on the main thread (they take a [`NonSendMarker`]), which
-/// otherwise only waits for the schedule, and a task-pool scope opened there works through
-/// the chunks alongside the compute threads. Bevy gives the compute pool one thread on a
-/// 2-core machine, so without this the work would use one core of two.
-pub(super) fn par_chunks<T: Send, R: Send + 'static>(
-    items: &mut [T],
-    f: impl Fn(&mut [T]) -> R + Send + Sync,
-) -> Vec<R> {
-    let mut items = items;
-    if items.len() < 2 {
-        return vec![f(items)];
-    }
-    let pool = ComputeTaskPool::get_or_init(TaskPool::default);
-    let size = items.len().div_ceil(4 * (pool.thread_num() + 1)).max(1);
-    items.par_chunk_map_mut(pool, size, |_, chunk| f(chunk))
-}
-
-/// The allocator's passes on the compute task pool, with the calling thread (see
-/// [`par_chunks`]).
-struct ComputePool;
-
-impl Executor for ComputePool {
-    fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
-        par_chunks(items, |chunk| chunk.iter_mut().for_each(f));
-    }
-}
 
 /// Buffers kept across frames.
 #[derive(Resource, Default)]
