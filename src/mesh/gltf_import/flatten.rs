@@ -1,0 +1,401 @@
+//! Flattening: every primitive of every instance appended to one mesh in world space.
+
+use super::accessors::{Data, type_error};
+use super::container::{gltf_error, semantic_name};
+use super::scene::{GltfSkinInfo, Instance};
+use crate::mesh::{IndexedMesh, MeshError, MeshResult, ValidationReport};
+use glam::{Mat3, Vec2, Vec3};
+use gltf::Primitive;
+use gltf::accessor::DataType;
+use gltf::mesh::{Mode, Semantic};
+
+/// The result of [`load_gltf`]: the flattened mesh and what else the file held.
+///
+/// [`load_gltf`]: super::load_gltf
+#[derive(Clone, Debug)]
+pub struct GltfImport {
+    /// Every triangle primitive of the scene in one mesh, already validated.
+    ///
+    /// Positions and normals are in world space, except for skinned meshes: the transform of
+    /// a skinned mesh's node is ignored, as the glTF specification requires, so their vertices
+    /// stay in bind (mesh) space and the skin's joints place them. Joint indices refer to the
+    /// joint list of the lowest-numbered skin that a node uses ([`skins`](Self::skins)); other
+    /// skins are remapped to it through their joint nodes.
+    ///
+    /// Normals are kept only when every primitive has them. Texture coordinates, joints and
+    /// weights are kept when any primitive has them, and are zero for the vertices of
+    /// primitives without.
+    pub mesh: IndexedMesh,
+    /// Number of triangle primitives flattened into the mesh (each instance counts).
+    pub primitives: usize,
+    /// How many of those primitives have morph targets. Only their base shape is imported.
+    pub morph_target_primitives: usize,
+    /// Every skin of the document, in document order.
+    pub skins: Vec<GltfSkinInfo>,
+    /// What [`IndexedMesh::validate`] dropped from the flattened mesh.
+    pub report: ValidationReport,
+    /// A region id per vertex, when the file paints regions (ASLOD's artists painted them with
+    /// vertex colours): the custom attribute `_REGION` (integer or float scalar), or else
+    /// `COLOR_0` quantised to 8 bits per channel (RGB packed into one id, so each distinct
+    /// colour is one region). Vertices of primitives without either get `u32::MAX`. Feed the
+    /// ids to `regions::Partition::from_ids`, which renumbers them.
+    pub region_ids: Option<Vec<u32>>,
+}
+
+/// Accumulates the flattened mesh.
+pub(super) struct Builder {
+    mesh: IndexedMesh,
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    joints: Vec<[u16; 4]>,
+    weights: Vec<[f32; 4]>,
+    region_ids: Vec<u32>,
+    any_region_ids: bool,
+    /// Which attributes some, and which all, primitives had.
+    any_normals: bool,
+    all_normals: bool,
+    any_uvs: bool,
+    any_joints: bool,
+    any_weights: bool,
+    /// Per skin, the map from its joint indices to those of the primary skin (`None` when a
+    /// joint node is missing there, which drops the joints).
+    joint_maps: Vec<Option<Vec<u16>>>,
+    /// Per skin, its number of joints.
+    joint_counts: Vec<usize>,
+    joints_unmappable: bool,
+    primitives: usize,
+    morph_target_primitives: usize,
+}
+
+impl Builder {
+    pub(super) fn new(skins: &[GltfSkinInfo], instances: &[Instance<'_>]) -> Self {
+        let primary = instances.iter().filter_map(|i| i.skin).min();
+        let joint_maps = skins
+            .iter()
+            .map(|skin| {
+                let primary = &skins[primary?].joints;
+                skin.joints
+                    .iter()
+                    .map(|node| {
+                        let j = primary.iter().position(|p| p == node)?;
+                        u16::try_from(j).ok()
+                    })
+                    .collect()
+            })
+            .collect();
+        Self {
+            mesh: IndexedMesh::default(),
+            normals: Vec::new(),
+            uvs: Vec::new(),
+            joints: Vec::new(),
+            weights: Vec::new(),
+            region_ids: Vec::new(),
+            any_region_ids: false,
+            any_normals: false,
+            all_normals: true,
+            any_uvs: false,
+            any_joints: false,
+            any_weights: false,
+            joint_maps,
+            joint_counts: skins.iter().map(|s| s.joints.len()).collect(),
+            joints_unmappable: false,
+            primitives: 0,
+            morph_target_primitives: 0,
+        }
+    }
+
+    pub(super) fn add_primitive(
+        &mut self,
+        data: &Data<'_>,
+        primitive: &Primitive<'_>,
+        instance: &Instance<'_>,
+    ) -> MeshResult<()> {
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            log::debug!("glTF: skipping a primitive of mode {mode:?}");
+            return Ok(());
+        }
+        let at = format!(
+            "meshes[{}].primitives[{}]",
+            instance.mesh.index(),
+            primitive.index()
+        );
+        let Some(position_accessor) = primitive.get(&Semantic::Positions) else {
+            return Err(gltf_error(format!("{at}.attributes: no POSITION")));
+        };
+        let vertex_count = position_accessor.count();
+        for (semantic, accessor) in primitive.attributes() {
+            if accessor.count() != vertex_count {
+                return Err(MeshError::AttributeCountMismatch {
+                    attribute: semantic_name(&semantic),
+                    expected: vertex_count,
+                    found: accessor.count(),
+                });
+            }
+        }
+
+        let attribute = |semantic: Semantic| {
+            let name = semantic_name(&semantic);
+            primitive
+                .get(&semantic)
+                .map(|a| (a, format!("{at}.attributes.{name}")))
+        };
+        let positions = data.read_floats::<3>(&position_accessor, &format!("{at}.POSITION"))?;
+        let normals = match attribute(Semantic::Normals) {
+            Some((a, what)) => Some(data.read_floats::<3>(&a, &what)?),
+            None => None,
+        };
+        let uvs = match attribute(Semantic::TexCoords(0)) {
+            Some((a, what)) => Some(data.read_floats::<2>(&a, &what)?),
+            None => None,
+        };
+        let joints = match attribute(Semantic::Joints(0)) {
+            Some((a, what)) => {
+                Some(data.read_uints::<4>(&a, &what, &[DataType::U8, DataType::U16])?)
+            }
+            None => None,
+        };
+        let weights = match attribute(Semantic::Weights(0)) {
+            Some((a, what)) => {
+                let ty = a.data_type();
+                if ty != DataType::F32
+                    && !(a.normalized() && matches!(ty, DataType::U8 | DataType::U16))
+                {
+                    return Err(type_error(&a, &what, "F32 or normalized U8/U16"));
+                }
+                Some(data.read_floats::<4>(&a, &what)?)
+            }
+            None => None,
+        };
+        let indices = match primitive.indices() {
+            Some(a) => {
+                let what = format!("{at}.indices");
+                let allowed = [DataType::U8, DataType::U16, DataType::U32];
+                data.read_uints::<1>(&a, &what, &allowed)?
+                    .into_iter()
+                    .map(|[i]| i)
+                    .collect()
+            }
+            None => (0..vertex_count as u32).collect::<Vec<u32>>(),
+        };
+        if let Some(pos) = indices.iter().position(|&i| i as usize >= vertex_count) {
+            return Err(MeshError::IndexOutOfRange {
+                triangle: pos / 3,
+                index: indices[pos],
+                vertex_count,
+            });
+        }
+        let triangles = triangulate(mode, &indices)?;
+
+        let base = self.mesh.positions.len();
+        if base + vertex_count > u32::MAX as usize {
+            return Err(gltf_error(format!(
+                "{at}: more than 2^32 vertices in the scene"
+            )));
+        }
+        let m = instance.transform;
+        let linear = Mat3::from_mat4(m);
+        let det = linear.determinant();
+        // The cofactor matrix is the inverse transpose times the determinant, and stays
+        // finite for singular transforms; the sign keeps normals pointing outwards.
+        let cofactor = Mat3::from_cols(
+            linear.y_axis.cross(linear.z_axis),
+            linear.z_axis.cross(linear.x_axis),
+            linear.x_axis.cross(linear.y_axis),
+        ) * if det < 0.0 { -1.0 } else { 1.0 };
+        self.mesh
+            .positions
+            .extend(positions.iter().map(|&p| m.transform_point3(Vec3::from(p))));
+
+        self.any_normals |= normals.is_some();
+        self.all_normals &= normals.is_some();
+        match &normals {
+            Some(n) => self.normals.extend(
+                n.iter()
+                    .map(|&n| (cofactor * Vec3::from(n)).normalize_or_zero()),
+            ),
+            None => self.normals.resize(base + vertex_count, Vec3::ZERO),
+        }
+        self.any_uvs |= uvs.is_some();
+        match &uvs {
+            Some(t) => self.uvs.extend(t.iter().map(|&t| Vec2::from(t))),
+            None => self.uvs.resize(base + vertex_count, Vec2::ZERO),
+        }
+        self.any_weights |= weights.is_some();
+        match &weights {
+            Some(w) => self.weights.extend_from_slice(w),
+            None => self.weights.resize(base + vertex_count, [0.0; 4]),
+        }
+        self.any_joints |= joints.is_some();
+        match &joints {
+            Some(js) => {
+                for j in js {
+                    let mapped = self.map_joints(*j, instance.skin, &at)?;
+                    self.joints.push(mapped);
+                }
+            }
+            None => self.joints.resize(base + vertex_count, [0; 4]),
+        }
+
+        let ids = read_region_ids(data, primitive, &at)?;
+        self.any_region_ids |= ids.is_some();
+        match ids {
+            Some(ids) => self.region_ids.extend_from_slice(&ids),
+            None => self.region_ids.resize(base + vertex_count, u32::MAX),
+        }
+
+        let flip = det < 0.0;
+        self.mesh.indices.reserve(triangles.len() * 3);
+        for [a, b, c] in triangles {
+            let (b, c) = if flip { (c, b) } else { (b, c) };
+            self.mesh.indices.extend([a, b, c].map(|i| i + base as u32));
+        }
+        self.primitives += 1;
+        if primitive.morph_targets().len() > 0 {
+            self.morph_target_primitives += 1;
+        }
+        Ok(())
+    }
+
+    /// Checks a vertex's joints against its skin and maps them to the primary skin.
+    fn map_joints(
+        &mut self,
+        joints: [u32; 4],
+        skin: Option<usize>,
+        at: &str,
+    ) -> MeshResult<[u16; 4]> {
+        let Some(s) = skin else {
+            // No skin to check against; u8/u16 data always fits.
+            return Ok(joints.map(|j| j as u16));
+        };
+        let count = self.joint_counts[s];
+        let mut out = [0; 4];
+        for (o, &j) in out.iter_mut().zip(&joints) {
+            if j as usize >= count {
+                return Err(gltf_error(format!(
+                    "{at}.attributes.JOINTS_0: joint {j} is out of range for skins[{s}] \
+                     ({count} joints)"
+                )));
+            }
+            *o = match &self.joint_maps[s] {
+                Some(map) => map[j as usize],
+                None => {
+                    self.joints_unmappable = true;
+                    0
+                }
+            };
+        }
+        Ok(out)
+    }
+
+    pub(super) fn finish(self, skins: Vec<GltfSkinInfo>) -> GltfImport {
+        let mut mesh = self.mesh;
+        if self.any_normals && !self.all_normals {
+            log::warn!("glTF: only some primitives have normals; dropping normals");
+        }
+        mesh.normals = (self.any_normals && self.all_normals).then_some(self.normals);
+        mesh.uvs = self.any_uvs.then_some(self.uvs);
+        let keep_joints = self.any_joints && !self.joints_unmappable;
+        if self.joints_unmappable {
+            log::warn!(
+                "glTF: skins with joints missing from the primary skin; dropping joints and \
+                 weights"
+            );
+        }
+        mesh.joints = keep_joints.then_some(self.joints);
+        mesh.weights = (keep_joints && self.any_weights).then_some(self.weights);
+        GltfImport {
+            mesh,
+            primitives: self.primitives,
+            morph_target_primitives: self.morph_target_primitives,
+            skins,
+            report: ValidationReport::default(),
+            region_ids: self.any_region_ids.then_some(self.region_ids),
+        }
+    }
+}
+
+/// Turns a primitive's index list into triangles (`TRIANGLES`, `TRIANGLE_STRIP` or
+/// `TRIANGLE_FAN`), in the order and winding the specification defines.
+fn triangulate(mode: Mode, indices: &[u32]) -> MeshResult<Vec<[u32; 3]>> {
+    Ok(match mode {
+        Mode::TriangleStrip => indices
+            .windows(3)
+            .enumerate()
+            .map(|(i, w)| {
+                if i % 2 == 0 {
+                    [w[0], w[1], w[2]]
+                } else {
+                    [w[0], w[2], w[1]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => match indices.split_first() {
+            Some((&first, rest)) => rest.windows(2).map(|w| [w[0], w[1], first]).collect(),
+            None => Vec::new(),
+        },
+        _ => {
+            if !indices.len().is_multiple_of(3) {
+                return Err(MeshError::IndexCountNotMultipleOfThree {
+                    count: indices.len(),
+                });
+            }
+            indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect()
+        }
+    })
+}
+
+/// A primitive's painted region ids: `_REGION`, or `COLOR_0` quantised (see
+/// [`GltfImport::region_ids`]).
+fn read_region_ids(
+    data: &Data<'_>,
+    primitive: &Primitive<'_>,
+    at: &str,
+) -> MeshResult<Option<Vec<u32>>> {
+    if let Some(a) = primitive.get(&Semantic::Extras("REGION".to_string())) {
+        let what = format!("{at}.attributes._REGION");
+        let ids = if a.data_type() == DataType::F32 {
+            data.read_floats::<1>(&a, &what)?
+                .into_iter()
+                .map(|[x]| {
+                    if x.is_finite() && x >= 0.0 {
+                        x.round() as u32
+                    } else {
+                        u32::MAX
+                    }
+                })
+                .collect()
+        } else {
+            let allowed = [DataType::U8, DataType::U16, DataType::U32];
+            data.read_uints::<1>(&a, &what, &allowed)?
+                .into_iter()
+                .map(|[x]| x)
+                .collect()
+        };
+        return Ok(Some(ids));
+    }
+    let Some(a) = primitive.get(&Semantic::Colors(0)) else {
+        return Ok(None);
+    };
+    let what = format!("{at}.attributes.COLOR_0");
+    let quantise = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round() as u32;
+    let pack = |r: f32, g: f32, b: f32| quantise(r) << 16 | quantise(g) << 8 | quantise(b);
+    let ids = if a.dimensions().multiplicity() == 3 {
+        data.read_floats::<3>(&a, &what)?
+            .into_iter()
+            .map(|[r, g, b]| pack(r, g, b))
+            .collect()
+    } else {
+        data.read_floats::<4>(&a, &what)?
+            .into_iter()
+            .map(|[r, g, b, _]| pack(r, g, b))
+            .collect()
+    };
+    Ok(Some(ids))
+}

@@ -1,0 +1,99 @@
+//! glTF 2.0 import (`.gltf` with external or embedded buffers, and `.glb`).
+//!
+//! A glTF scene is flattened into one [`IndexedMesh`]: every triangle primitive of every node
+//! is transformed to world space and appended. Images are never decoded.
+//!
+//! Untrusted files are checked before anything is indexed: the GLB container is walked by
+//! hand (the `gltf` crate's own errors do not say what is wrong, and some headers make it
+//! overflow), the JSON is validated with a report that names each pointer, and every accessor
+//! is decoded here with explicit bounds checks rather than by the `gltf` reader, which can
+//! panic or silently stop short on inconsistent counts, strides or sparse data.
+//!
+//! [`IndexedMesh`]: super::IndexedMesh
+
+mod accessors;
+mod container;
+mod flatten;
+mod scene;
+
+pub use flatten::GltfImport;
+pub use scene::GltfSkinInfo;
+
+use super::{MeshError, MeshResult};
+use accessors::Data;
+use container::{gltf_error, load_buffers, parse_document, split_glb};
+use flatten::Builder;
+use scene::{collect_instances, read_skin};
+use std::path::Path;
+
+/// Reads a `.gltf` or `.glb` file and flattens its default scene into one mesh; see
+/// [`load_gltf_slice`]. External buffers are resolved relative to the file's directory.
+///
+/// # Errors
+/// [`MeshError::Io`] when the file cannot be read, otherwise the errors of
+/// [`load_gltf_slice`].
+pub fn load_gltf(path: &Path) -> MeshResult<GltfImport> {
+    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+    load_gltf_slice(&bytes, path.parent())
+}
+
+/// Parses glTF JSON or a GLB container held in memory and flattens it into one mesh.
+///
+/// The nodes imported are those of the default scene; without one, those of every scene;
+/// without scenes, every root node; and in a file with meshes but no nodes at all, every mesh
+/// once, untransformed. Primitives of mode triangles, triangle strip and triangle fan are
+/// imported (points and lines are skipped) with `POSITION`, `NORMAL`, `TEXCOORD_0`,
+/// `JOINTS_0` and `WEIGHTS_0`. Normals are transformed by the inverse transpose and
+/// renormalised, and a mirroring transform flips the winding so that front faces stay
+/// counter-clockwise. See [`GltfImport::mesh`] for the handling of skins and of attributes
+/// that only some primitives have.
+///
+/// External buffers are read from `base_dir`; `data:` URIs and the GLB `BIN` chunk need none.
+///
+/// # Errors
+/// - [`MeshError::Gltf`] for a defective GLB container (the message says `empty file`,
+///   `truncated GLB header`, `GLB length mismatch`, `truncated chunk`, `unaligned chunk` or
+///   `BOM`), invalid JSON, unresolved references (naming the pointer, as in
+///   `accessors[0].bufferView: unresolved reference 5`), unreadable or short buffers,
+///   accessors that reach past their buffer view, attribute types this importer cannot read,
+///   and skins without joints (`skins[i].joints`).
+/// - [`MeshError::AttributeCountMismatch`] when the attributes of one primitive have
+///   different counts.
+/// - [`MeshError::IndexOutOfRange`] when a primitive's index refers to no vertex of it (the
+///   triangle is counted within the primitive).
+/// - [`MeshError::IndexCountNotMultipleOfThree`] for a triangle-list primitive whose index
+///   count is not a multiple of three.
+/// - Any error of [`IndexedMesh::validate`] on the flattened mesh.
+///
+/// [`IndexedMesh::validate`]: super::IndexedMesh::validate
+pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> MeshResult<GltfImport> {
+    let (json, bin) = if bytes.starts_with(b"glTF") {
+        split_glb(bytes)?
+    } else if bytes.is_empty() {
+        return Err(gltf_error("empty file: no GLB header and no JSON"));
+    } else {
+        (bytes, None)
+    };
+    // Some exporters pad the JSON chunk with NULs instead of spaces; tolerate that.
+    let end = json.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+    let document = parse_document(&json[..end])?;
+    let buffers = load_buffers(&document, bin, base_dir)?;
+    let data = Data { buffers };
+
+    // Skins first: a file may be nothing but a broken skin.
+    let skins = document
+        .skins()
+        .map(|skin| read_skin(&data, &skin))
+        .collect::<MeshResult<Vec<_>>>()?;
+
+    let instances = collect_instances(&document)?;
+    let mut builder = Builder::new(&skins, &instances);
+    for instance in &instances {
+        for primitive in instance.mesh.primitives() {
+            builder.add_primitive(&data, &primitive, instance)?;
+        }
+    }
+    let mut import = builder.finish(skins);
+    import.report = import.mesh.validate()?;
+    Ok(import)
+}
