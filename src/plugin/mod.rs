@@ -323,10 +323,9 @@ pub struct MultiresInstance {
     bounds: Obb,
     caches: RegionCaches,
     targets: Vec<u32>,
-    /// Where this model's regions sit in `Allocate`'s inputs and counts: the allocation that
-    /// last included it (`AslodScratch::serial`), and its first region there. `SelectLod`
-    /// copies its `targets` from those counts when that allocation is this frame's.
-    input_run: (u64, usize),
+    /// Where this model's regions sit in `Allocate`'s inputs and counts. `SelectLod` copies
+    /// its `targets` from those counts when that allocation is this frame's.
+    input_run: InputRun,
     meshes: Vec<Handle<Mesh>>,
     /// `meshes`' ids, for `Upload`: reading one from its handle follows the handle's pointer,
     /// a cache miss per region mesh.
@@ -336,11 +335,8 @@ pub struct MultiresInstance {
     /// Every region entity, by region (a skinned model's rigid regions live under their
     /// joints, the others under the model).
     region_entities: Vec<Entity>,
-    /// Unskinned models: per region, whether `SelectLod` wrote a new index buffer, and that
-    /// buffer, for `Upload` to swap into the region's mesh. After the swap it holds the
-    /// mesh's old buffer, so steady state allocates nothing. 16-bit wherever the region's
-    /// vertices fit (half the bytes to write, keep and upload).
-    staged: Vec<(bool, bevy::mesh::Indices)>,
+    /// Unskinned models: per region, the index buffer `SelectLod` wrote for `Upload`.
+    staged: Vec<StagedIndices>,
     /// The regions whose `staged` flag `SelectLod` raised since the last `Upload`, each once.
     ready: Vec<u32>,
     /// Unskinned models: `SelectLod` left every region at its target and wrote every dirty
@@ -348,6 +344,26 @@ pub struct MultiresInstance {
     settled: bool,
     /// The triangles `SelectLod` left the instance showing, all regions together.
     shown: u64,
+}
+
+/// Where a model's regions sat in the last allocation that included it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct InputRun {
+    /// That allocation's serial number (`AslodScratch::serial`).
+    allocation: u64,
+    /// The model's first region in that allocation's inputs and counts.
+    first: usize,
+}
+
+/// One unskinned region's index buffer between `SelectLod` and `Upload`.
+#[derive(Debug)]
+struct StagedIndices {
+    /// `SelectLod` wrote a new level into `indices` that `Upload` has not swapped in yet.
+    ready: bool,
+    /// The new level, for `Upload` to swap into the region's mesh; after the swap, the mesh's
+    /// old buffer, so steady state allocates nothing. 16-bit wherever the region's vertices
+    /// fit (half the bytes to write, keep and upload).
+    indices: bevy::mesh::Indices,
 }
 
 impl MultiresInstance {

@@ -2,12 +2,13 @@
 
 use super::render::{self, RegionUpload, RenderWrites};
 use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
+use super::tasks::{ComputePool, par_chunks};
 use super::{
-    AslodStats, AslodSystems, AslodViewport, CountInBudget, FullDetail, LodPriority, LodRegion,
-    MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, diagnostics,
+    AslodStats, AslodSystems, AslodViewport, CountInBudget, FullDetail, InputRun, LodPriority,
+    LodRegion, MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, StagedIndices,
+    diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
-use super::tasks::{ComputePool, par_chunks};
 use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
@@ -36,6 +37,9 @@ pub(crate) struct AslodScratch {
     counts: Vec<u32>,
     /// Counts the allocations; [`MultiresInstance::input_run`] names the one it took part in.
     serial: u64,
+    /// This frame's allocation, for `SelectLod`: its serial, or `None` when `Allocate` made
+    /// none (no usable camera, or a budget it could not use).
+    allocated: Option<u64>,
     warned_budget: bool,
 }
 
@@ -180,7 +184,10 @@ pub(super) fn spawn_regions(
         let staged = regions
             .regions()
             .iter()
-            .map(|region| (false, empty_indices(region.fits_u16())))
+            .map(|region| StagedIndices {
+                ready: false,
+                indices: empty_indices(region.fits_u16()),
+            })
             .collect();
         commands.entity(entity).insert(MultiresInstance {
             caches: RegionCaches::new(&regions),
@@ -188,7 +195,7 @@ pub(super) fn spawn_regions(
             obbs: asset.obbs().clone(),
             regions,
             targets,
-            input_run: (0, 0),
+            input_run: InputRun::default(),
             mesh_ids: handles.iter().map(Handle::id).collect(),
             meshes: handles,
             skin: state,
@@ -336,6 +343,7 @@ fn allocate(
     let start = Instant::now();
     let scratch = &mut *scratch;
     stats.allocated = false;
+    scratch.allocated = None;
     stats.budget = budget.total;
     scratch.cameras.clear();
     for (camera, transform, projection) in &cameras {
@@ -399,7 +407,10 @@ fn allocate(
     let fill = |chunk: &mut [AreaJob<'_>]| {
         let mut scratch = AreaScratch::default();
         for ((instance, transform, priority), offset, out) in chunk {
-            instance.input_run = (serial, *offset);
+            instance.input_run = InputRun {
+                allocation: serial,
+                first: *offset,
+            };
             region_inputs(
                 instance,
                 transform,
@@ -444,6 +455,7 @@ fn allocate(
         }
     }
     stats.allocated = true;
+    scratch.allocated = Some(serial);
     let ms = start.elapsed().as_secs_f64() * 1e3;
     stats.allocation_ms = ms;
     diag.add_measurement(&diagnostics::ALLOCATION_MS, || ms);
@@ -556,15 +568,15 @@ fn select_lod(
     let start = Instant::now();
     let mut instances: Vec<Mut<MultiresInstance>> = models.iter_mut().collect();
     // The models this frame's allocation covered take their targets from its counts.
-    let fresh = stats.allocated.then_some(scratch.serial);
+    let fresh = scratch.allocated;
     let counts = &scratch.counts;
     let totals = par_chunks(&mut instances, |chunk| {
         let mut triangles = 0u64;
         for instance in chunk {
-            let (serial, start) = instance.input_run;
+            let InputRun { allocation, first } = instance.input_run;
             let run = counts
-                .get(start..start + instance.targets.len())
-                .filter(|_| fresh == Some(serial));
+                .get(first..first + instance.targets.len())
+                .filter(|_| fresh == Some(allocation));
             // The same targets as last frame on a settled model: nothing moves (most models
             // out of view, whose regions all sit at their minimum, and far ones).
             let same = run.is_none_or(|run| run == instance.targets.as_slice());
@@ -593,9 +605,9 @@ fn select_lod(
                     if !instance.caches.is_dirty(r) {
                         continue;
                     }
-                    let (ready, buffer) = &mut instance.staged[r];
+                    let StagedIndices { ready, indices } = &mut instance.staged[r];
                     let (caches, regions) = (&mut instance.caches, &instance.regions);
-                    match buffer {
+                    match indices {
                         Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
                         Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
                     };
@@ -846,7 +858,7 @@ fn upload(
         // Only the regions `SelectLod` wrote: their staging slots and meshes.
         for r in instance.ready.drain(..) {
             let r = r as usize;
-            let (ready, buffer) = &mut instance.staged[r];
+            let StagedIndices { ready, indices } = &mut instance.staged[r];
             if !std::mem::take(ready) {
                 continue;
             }
@@ -859,7 +871,7 @@ fn upload(
             let Some(mesh) = target.mesh(id) else {
                 continue;
             };
-            if swap_staged(mesh, buffer) {
+            if swap_staged(mesh, indices) {
                 changed += 1;
                 target.indices_changed(id, entity);
             }

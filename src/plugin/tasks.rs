@@ -32,4 +32,3 @@ impl Executor for ComputePool {
         par_chunks(items, |chunk| chunk.iter_mut().for_each(f));
     }
 }
-

@@ -27,7 +27,13 @@ pub fn example_binary(name: &str) -> PathBuf {
     .filter_map(|(name, on)| on.then_some(name))
     .collect();
     let status = Command::new(env!("CARGO"))
-        .args(["build", "--example", name, "--features", &features.join(",")])
+        .args([
+            "build",
+            "--example",
+            name,
+            "--features",
+            &features.join(","),
+        ])
         .args(if profile_dir.ends_with("release") {
             &["--release"][..]
         } else {
