@@ -15,9 +15,10 @@ mod common;
 use bevy::camera::RenderTarget;
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool, futures::check_ready};
 use bevy_aslod::plugin::{
-    AslodOverlay, AslodPlugin, AslodStats, FullDetail, LodRegion, MultiresInstance, MultiresMesh,
-    MultiresModel,
+    AslodOverlay, AslodPlugin, AslodStats, FullDetail, LodRegion, MultiresError, MultiresInstance,
+    MultiresMesh, MultiresModel,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use common::terrain::{HEIGHT, SIDE, SPACING, terrain};
@@ -54,7 +55,7 @@ fn main() {
         })
         .init_resource::<Shading>()
         .add_systems(Startup, setup)
-        .add_systems(Update, (apply_shading, update_label));
+        .add_systems(Update, (finish_terrain, apply_shading, update_label));
     if args.headless {
         let dir = args
             .screenshot
@@ -144,44 +145,33 @@ struct Shading {
     regions: Vec<Handle<StandardMaterial>>,
 }
 
+/// The terrain's asset being built on the async compute pool (seconds on two cores; the
+/// window opens meanwhile), with its triangle count and when it began.
+#[derive(Resource)]
+struct TerrainBuild(
+    Task<Result<(MultiresMesh, usize), MultiresError>>,
+    std::time::Instant,
+);
+
 fn setup(
     mut commands: Commands,
-    mut multires: ResMut<Assets<MultiresMesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     mut images: ResMut<Assets<Image>>,
     mut shading: ResMut<Shading>,
     shots: Option<Res<Shots>>,
 ) {
-    let start = std::time::Instant::now();
-    let mesh = terrain();
-    let asset = Partition::grid(&mesh, GridPlane::XZ, 6, 6)
-        .map_err(bevy_aslod::plugin::MultiresError::from)
-        .and_then(|partition| MultiresMesh::from_indexed(&mesh, &partition));
-    let asset = match asset {
-        Ok(asset) => asset,
-        Err(e) => {
-            error!("cannot build the terrain: {e}");
-            return;
-        }
-    };
-    info!(
-        "terrain: {} triangles in {} regions ({}..{} triangles), built in {:.1} s",
-        mesh.triangle_count(),
-        asset.region_count(),
-        asset.min_triangles(),
-        asset.max_triangles(),
-        start.elapsed().as_secs_f32()
-    );
+    let task = AsyncComputeTaskPool::get_or_init(TaskPool::default).spawn(async {
+        let mesh = terrain();
+        let partition = Partition::grid(&mesh, GridPlane::XZ, 6, 6)?;
+        let asset = MultiresMesh::from_indexed(&mesh, &partition)?;
+        Ok::<_, MultiresError>((asset, mesh.triangle_count()))
+    });
+    commands.insert_resource(TerrainBuild(task, std::time::Instant::now()));
     shading.terrain = materials.add(StandardMaterial {
         base_color: Color::srgb(0.55, 0.52, 0.45),
         perceptual_roughness: 0.95,
         ..default()
     });
-    commands.spawn((
-        MultiresModel(multires.add(asset)),
-        MeshMaterial3d(shading.terrain.clone()),
-        Transform::default(),
-    ));
     commands.spawn((
         DirectionalLight {
             illuminance: 9_000.0,
@@ -221,6 +211,43 @@ fn setup(
         },
         Label,
     ));
+}
+
+/// Spawns the terrain once its asset is built (or exits with the error).
+fn finish_terrain(
+    mut commands: Commands,
+    build: Option<ResMut<TerrainBuild>>,
+    mut multires: ResMut<Assets<MultiresMesh>>,
+    shading: Res<Shading>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    let Some(mut build) = build else {
+        return;
+    };
+    let Some(result) = check_ready(&mut build.0) else {
+        return;
+    };
+    commands.remove_resource::<TerrainBuild>();
+    match result {
+        Ok((asset, triangles)) => {
+            info!(
+                "terrain: {triangles} triangles in {} regions ({}..{} triangles), built in {:.1} s",
+                asset.region_count(),
+                asset.min_triangles(),
+                asset.max_triangles(),
+                build.1.elapsed().as_secs_f32()
+            );
+            commands.spawn((
+                MultiresModel(multires.add(asset)),
+                MeshMaterial3d(shading.terrain.clone()),
+                Transform::default(),
+            ));
+        }
+        Err(e) => {
+            error!("cannot build the terrain: {e}");
+            exit.write(AppExit::error());
+        }
+    }
 }
 
 /// Heat colour per region (red: the most triangles, blue: the fewest), or the terrain's own.
@@ -423,13 +450,14 @@ fn drive_shots(
     if shots.pending {
         return;
     }
+    // The terrain is still building: the wait starts once it is there.
+    let (Some(target), Ok(instance)) = (target, models.single()) else {
+        return;
+    };
     if shots.wait > 0 {
         shots.wait -= 1;
         return;
     }
-    let (Some(target), Ok(instance)) = (target, models.single()) else {
-        return;
-    };
     // Record the counts the frame is drawn with.
     if !by_region {
         let caches = instance.caches();

@@ -1,6 +1,25 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
+/// `with_FIELD` setters for an options struct that is `#[non_exhaustive]` (so that code outside
+/// the crate, which cannot write its struct literal, sets fields by chaining from `default()`):
+/// `with_setters!(Options { field: Type => with_field, ... });`
+macro_rules! with_setters {
+    ($ty:ty { $($field:ident: $fty:ty => $name:ident),* $(,)? }) => {
+        impl $ty {
+            $(
+                #[doc = concat!("Sets [`", stringify!($field), "`](Self::", stringify!($field), ").")]
+                #[inline]
+                #[must_use]
+                pub const fn $name(mut self, $field: $fty) -> Self {
+                    self.$field = $field;
+                    self
+                }
+            )*
+        }
+    };
+}
+
 #[cfg(feature = "bevy")]
 pub mod bevy_mesh;
 pub mod budget;

@@ -177,10 +177,7 @@ fn jittered(mesh: &Mesh, amount: f32, seed: u64) -> Mesh {
 }
 
 fn opts(samples: usize) -> DistanceOptions {
-    DistanceOptions {
-        samples,
-        ..DistanceOptions::default()
-    }
+    DistanceOptions::default().with_samples(samples)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -248,20 +245,9 @@ fn refinement_reaches_a_sharp_peak() {
         positions: a.positions.clone(),
         indices: vec![0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 0, 0],
     };
-    let sampled = DistanceOptions {
-        samples: 50,
-        refine: 0,
-        ..DistanceOptions::default()
-    };
+    let sampled = DistanceOptions::default().with_samples(50).with_refine(0);
     let plain = mesh_distance(a.as_ref(), b.as_ref(), &sampled);
-    let refined = mesh_distance(
-        a.as_ref(),
-        b.as_ref(),
-        &DistanceOptions {
-            refine: 4,
-            ..sampled
-        },
-    );
+    let refined = mesh_distance(a.as_ref(), b.as_ref(), &sampled.with_refine(4));
     eprintln!("sampled {plain:?}\nrefined {refined:?}");
     assert!(
         plain.a_to_b_abs < 0.5 && plain.a_to_b_abs > 0.3,
@@ -353,15 +339,13 @@ fn symmetric() {
 fn deterministic() {
     let a = icosphere(3);
     let b = jittered(&a, 0.01, 99);
-    let o = DistanceOptions {
-        samples: 50_000,
-        seed: 42,
-        ..DistanceOptions::default()
-    };
+    let o = DistanceOptions::default()
+        .with_samples(50_000)
+        .with_seed(42);
     let first = mesh_distance(a.as_ref(), b.as_ref(), &o);
     assert_eq!(first, mesh_distance(a.as_ref(), b.as_ref(), &o));
     for threads in [1, 2, 3, 7] {
-        let o = DistanceOptions { threads, ..o };
+        let o = o.with_threads(threads);
         assert_eq!(
             first,
             mesh_distance(a.as_ref(), b.as_ref(), &o),
@@ -369,7 +353,7 @@ fn deterministic() {
         );
     }
     // Another seed moves the samples (and so the numbers), but only slightly.
-    let other = mesh_distance(a.as_ref(), b.as_ref(), &DistanceOptions { seed: 7, ..o });
+    let other = mesh_distance(a.as_ref(), b.as_ref(), &o.with_seed(7));
     assert_ne!(first.rms_abs, other.rms_abs);
     assert!((first.rms_abs - other.rms_abs).abs() < 0.02 * first.rms_abs);
     assert!((first.hausdorff_abs - other.hausdorff_abs).abs() < 0.1 * first.hausdorff_abs);
@@ -427,11 +411,7 @@ fn empty_and_invalid_input() {
     assert_eq!(Bvh::new(&[], &[]).closest_point(Vec3::ZERO), None);
     assert_eq!(one_sided(empty.as_ref(), &Bvh::default(), &o), (0.0, 0.0));
     // No samples asked for: nothing measured, but no NaN either.
-    let nothing = DistanceOptions {
-        samples: 0,
-        include_vertices: false,
-        ..o
-    };
+    let nothing = o.with_samples(0).with_vertices(false);
     let d = mesh_distance(square.as_ref(), broken.as_ref(), &nothing);
     assert_eq!((d.hausdorff_abs, d.rms_abs), (0.0, 0.0), "{d:?}");
     let d = mesh_distance(square.as_ref(), empty.as_ref(), &nothing);
@@ -512,10 +492,7 @@ fn bunny_timing() {
             ),
         };
         for threads in [1, 0] {
-            let o = DistanceOptions {
-                threads,
-                ..DistanceOptions::default()
-            };
+            let o = DistanceOptions::default().with_threads(threads);
             let start = Instant::now();
             let d = mesh_distance(bunny.as_ref(), simplified.as_ref(), &o);
             let elapsed = start.elapsed();

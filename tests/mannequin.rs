@@ -347,18 +347,9 @@ fn the_committed_asset_matches() {
 #[test]
 fn bad_options_are_errors() {
     for options in [
-        MannequinOptions {
-            cell_size: 0.0,
-            ..MannequinOptions::default()
-        },
-        MannequinOptions {
-            height: f32::NAN,
-            ..MannequinOptions::default()
-        },
-        MannequinOptions {
-            keyframe_rate: -1.0,
-            ..MannequinOptions::default()
-        },
+        MannequinOptions::default().with_cell_size(0.0),
+        MannequinOptions::default().with_height(f32::NAN),
+        MannequinOptions::default().with_keyframe_rate(-1.0),
     ] {
         assert!(generate(&options).is_err(), "{options:?}");
     }

@@ -290,10 +290,7 @@ fn local_error_keeps_fandisks_creases() {
         let pm = ProgressiveMesh::build(&mesh, &options).expect("valid mesh");
         let mut cache = PolygonCache::new(&pm);
         cache.set_triangle_count(&pm, mesh.triangle_count() / 10);
-        let options = DistanceOptions {
-            samples: 50_000,
-            ..DistanceOptions::default()
-        };
+        let options = DistanceOptions::default().with_samples(50_000);
         mesh_distance(
             MeshRef::new(&mesh.positions, &mesh.indices),
             MeshRef::new(&pm.vertices().positions, cache.indices()),

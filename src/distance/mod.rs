@@ -122,7 +122,14 @@ fn valid_triangles(mesh: MeshRef) -> Vec<(u32, [u32; 3])> {
 }
 
 /// How [`mesh_distance`] and [`one_sided`] sample the surfaces.
+///
+/// ```
+/// use bevy_aslod::distance::DistanceOptions;
+/// let options = DistanceOptions::default().with_samples(50_000).with_seed(7);
+/// assert_eq!((options.samples, options.seed), (50_000, 7));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct DistanceOptions {
     /// Area samples drawn on each mesh (per direction), spread by area. Default `200_000`.
     ///
@@ -152,6 +159,15 @@ pub struct DistanceOptions {
     /// does not depend on it. Default `0`.
     pub threads: usize,
 }
+
+with_setters!(DistanceOptions {
+    samples: usize => with_samples,
+    seed: u64 => with_seed,
+    include_vertices: bool => with_vertices,
+    include_edge_midpoints: bool => with_edge_midpoints,
+    refine: usize => with_refine,
+    threads: usize => with_threads,
+});
 
 impl Default for DistanceOptions {
     fn default() -> Self {

@@ -37,7 +37,7 @@
 //! use bevy_aslod::mannequin::{MannequinOptions, generate};
 //!
 //! // A coarse mannequin for a quick look; the default is the paper's ~30,000 triangles.
-//! let options = MannequinOptions { cell_size: 0.03, ..MannequinOptions::default() };
+//! let options = MannequinOptions::default().with_cell_size(0.03);
 //! let mannequin = generate(&options)?;
 //! assert_eq!(mannequin.regions.len(), 19);
 //! let glb = mannequin.to_glb();
@@ -56,8 +56,10 @@ use crate::skin::{SkinError, SkinRegionKind, shortest_path_weights};
 use glam::{Quat, UVec3, Vec3};
 use skeleton::{BONES, Body};
 
-/// How to generate the mannequin. The defaults give the paper's size.
+/// How to generate the mannequin. The defaults give the paper's size; change a field with its
+/// setter: `MannequinOptions::default().with_cell_size(0.02)`.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct MannequinOptions {
     /// Edge of the polygonising grid's cells, in metres of the design (a 1.75 m figure).
     /// Triangle count grows as the inverse square. Must be in `[0.005, 0.1]`.
@@ -83,6 +85,14 @@ pub struct MannequinOptions {
     /// Default: `20.0`.
     pub keyframe_rate: f32,
 }
+
+with_setters!(MannequinOptions {
+    cell_size: f32 => with_cell_size,
+    smoothing_iterations: usize => with_smoothing_iterations,
+    height: f32 => with_height,
+    duration: f32 => with_duration,
+    keyframe_rate: f32 => with_keyframe_rate,
+});
 
 impl Default for MannequinOptions {
     fn default() -> Self {
