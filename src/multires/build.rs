@@ -404,23 +404,6 @@ impl<'a> Builder<'a> {
         builder
     }
 
-    /// Takes the chains of other regions' vertices (see [`Constraints::chains`]), per vertex,
-    /// into `band`, per position.
-    fn set_chains(&mut self, chains: &[Vec<(u32, Vec3)>]) {
-        if chains.iter().all(Vec::is_empty) {
-            return;
-        }
-        self.band = vec![Vec::new(); self.points.len()];
-        for (v, chain) in chains.iter().enumerate() {
-            if !chain.is_empty() {
-                self.band[self.pos[v] as usize] = chain
-                    .iter()
-                    .map(|&(level, p)| (level, p.as_dvec3() - self.centre))
-                    .collect();
-            }
-        }
-    }
-
     /// Phase 2: manifold, border, complex or pinned, per position.
     fn classify(&mut self, pinned: Option<&[bool]>) {
         let mut neighbors: Vec<(u32, i32, u32)> = Vec::new();
@@ -489,6 +472,23 @@ impl<'a> Builder<'a> {
                 if is_pinned {
                     self.kind[self.pos[v] as usize] = Kind::Pinned;
                 }
+            }
+        }
+    }
+
+    /// Takes the chains of other regions' vertices (see [`Constraints::chains`]), per vertex,
+    /// into `band`, per position.
+    fn set_chains(&mut self, chains: &[Vec<(u32, Vec3)>]) {
+        if chains.iter().all(Vec::is_empty) {
+            return;
+        }
+        self.band = vec![Vec::new(); self.points.len()];
+        for (v, chain) in chains.iter().enumerate() {
+            if !chain.is_empty() {
+                self.band[self.pos[v] as usize] = chain
+                    .iter()
+                    .map(|&(level, p)| (level, p.as_dvec3() - self.centre))
+                    .collect();
             }
         }
     }
@@ -1089,6 +1089,66 @@ impl<'a> Builder<'a> {
         if cost <= self.cost_floor { 0.0 } else { cost }
     }
 
+    /// Phase 5: removes the edge's triangles, moves u's corners to w, records both.
+    fn perform(&mut self, u: u32, w: u32, error: f64) {
+        let rewrite_start = self.rewrites.len();
+        let mut removed = [u32::MAX; 2];
+        let mut removed_count = 0u8;
+        let map = std::mem::take(&mut self.scratch.map);
+        let mut adj_u = std::mem::take(&mut self.adj_u);
+        self.adj.take(u, &mut adj_u);
+        self.moved_ring.clear();
+        for &t in &adj_u {
+            let tri = self.tris[t as usize];
+            self.moved_ring
+                .extend(tri.iter().map(|&v| self.pos[v as usize]));
+            let on_edge = tri.iter().any(|&v| self.pos[v as usize] == w);
+            if on_edge {
+                self.alive[t as usize] = false;
+                self.live_triangles -= 1;
+                removed[removed_count as usize] = t;
+                removed_count += 1;
+                for &v in &tri {
+                    let p = self.pos[v as usize];
+                    if p != u {
+                        self.adj.remove(p, t);
+                    }
+                }
+            } else {
+                for (k, &v) in tri.iter().enumerate() {
+                    if self.pos[v as usize] == u {
+                        let new = map
+                            .iter()
+                            .find(|m| m.0 == v)
+                            .map(|m| m.1)
+                            .expect("validated collapse maps every wedge");
+                        self.tris[t as usize][k] = new;
+                        self.rewrites.push((t, k as u8, v, new));
+                    }
+                }
+                self.adj.push(w, t);
+            }
+        }
+        let step = self.collapses.len() as u32;
+        self.moves
+            .extend(map.iter().map(|&(old, new)| (step, old, new)));
+        self.scratch.map = map;
+        self.adj_u = adj_u;
+        let q = self.quadrics[u as usize];
+        self.quadrics[w as usize].add(&q);
+        self.scale[w as usize] = self.scale_of(w);
+        let error = (error.sqrt() * self.inv_diagonal) as f32;
+        let previous = self.collapses.last().map_or(0.0, |c| c.error);
+        self.collapses.push(Collapse {
+            removed,
+            removed_count,
+            rewrites: rewrite_start..self.rewrites.len(),
+            // The table is monotone: a level's error is the largest collapse error so far.
+            error: error.max(previous),
+        });
+        self.heap.remove(u);
+    }
+
     /// Brings the queued collapse of `x`, a neighbour of `w` after `u` collapsed onto `w`, up
     /// to date, doing what [`rank`](Self::rank)`(x, false)` would do (`moved_ring` holds the
     /// positions around `u` before the collapse).
@@ -1187,66 +1247,6 @@ impl<'a> Builder<'a> {
         }
         let fresh = fresh.map(|(cost, w, _)| (cost.to_bits(), w));
         assert_eq!(queued, fresh, "vertex {x} kept a stale collapse");
-    }
-
-    /// Phase 5: removes the edge's triangles, moves u's corners to w, records both.
-    fn perform(&mut self, u: u32, w: u32, error: f64) {
-        let rewrite_start = self.rewrites.len();
-        let mut removed = [u32::MAX; 2];
-        let mut removed_count = 0u8;
-        let map = std::mem::take(&mut self.scratch.map);
-        let mut adj_u = std::mem::take(&mut self.adj_u);
-        self.adj.take(u, &mut adj_u);
-        self.moved_ring.clear();
-        for &t in &adj_u {
-            let tri = self.tris[t as usize];
-            self.moved_ring
-                .extend(tri.iter().map(|&v| self.pos[v as usize]));
-            let on_edge = tri.iter().any(|&v| self.pos[v as usize] == w);
-            if on_edge {
-                self.alive[t as usize] = false;
-                self.live_triangles -= 1;
-                removed[removed_count as usize] = t;
-                removed_count += 1;
-                for &v in &tri {
-                    let p = self.pos[v as usize];
-                    if p != u {
-                        self.adj.remove(p, t);
-                    }
-                }
-            } else {
-                for (k, &v) in tri.iter().enumerate() {
-                    if self.pos[v as usize] == u {
-                        let new = map
-                            .iter()
-                            .find(|m| m.0 == v)
-                            .map(|m| m.1)
-                            .expect("validated collapse maps every wedge");
-                        self.tris[t as usize][k] = new;
-                        self.rewrites.push((t, k as u8, v, new));
-                    }
-                }
-                self.adj.push(w, t);
-            }
-        }
-        let step = self.collapses.len() as u32;
-        self.moves
-            .extend(map.iter().map(|&(old, new)| (step, old, new)));
-        self.scratch.map = map;
-        self.adj_u = adj_u;
-        let q = self.quadrics[u as usize];
-        self.quadrics[w as usize].add(&q);
-        self.scale[w as usize] = self.scale_of(w);
-        let error = (error.sqrt() * self.inv_diagonal) as f32;
-        let previous = self.collapses.last().map_or(0.0, |c| c.error);
-        self.collapses.push(Collapse {
-            removed,
-            removed_count,
-            rewrites: rewrite_start..self.rewrites.len(),
-            // The table is monotone: a level's error is the largest collapse error so far.
-            error: error.max(previous),
-        });
-        self.heap.remove(u);
     }
 
     fn run(&mut self, progress: &mut dyn FnMut(usize, usize)) {
