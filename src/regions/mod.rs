@@ -56,6 +56,7 @@
 
 mod cache;
 mod partition;
+mod util;
 
 pub use cache::RegionCaches;
 pub use partition::{GridPlane, Partition};
@@ -64,6 +65,7 @@ use crate::mesh::{IndexedMesh, MeshError, weld_positions};
 use crate::multires::{BuildOptions, ProgressiveMesh, build};
 use glam::Vec3;
 use thiserror::Error;
+use util::{find, subset, unite};
 
 /// What can go wrong when partitioning or building regions.
 #[derive(Debug, Error)]
@@ -709,41 +711,6 @@ fn closed_band_cuts(mesh: &IndexedMesh, region_of: &[u32], at: &[u32]) -> Vec<bo
     (0..region_of.len())
         .map(|v| cut_positions[at[v] as usize])
         .collect()
-}
-
-/// Union-find over `parent` (each entry its parent, roots their own): the root of `x`, with
-/// path halving.
-fn find(parent: &mut [u32], mut x: u32) -> u32 {
-    while parent[x as usize] != x {
-        parent[x as usize] = parent[parent[x as usize] as usize];
-        x = parent[x as usize];
-    }
-    x
-}
-
-/// Union-find: joins the sets of `a` and `b` under the smaller root.
-fn unite(parent: &mut [u32], a: u32, b: u32) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    parent[ra.max(rb) as usize] = ra.min(rb);
-}
-
-/// The attributes of `vertices`, in that order, with no triangles.
-fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
-    fn pick<T: Copy>(v: &Option<Vec<T>>, vertices: &[u32]) -> Option<Vec<T>> {
-        v.as_ref()
-            .map(|v| vertices.iter().map(|&i| v[i as usize]).collect())
-    }
-    IndexedMesh {
-        positions: vertices
-            .iter()
-            .map(|&i| mesh.positions[i as usize])
-            .collect(),
-        normals: pick(&mesh.normals, vertices),
-        uvs: pick(&mesh.uvs, vertices),
-        joints: pick(&mesh.joints, vertices),
-        weights: pick(&mesh.weights, vertices),
-        indices: Vec::new(),
-    }
 }
 
 /// The border triangles of region `r` that may ever need `write_indices`'s fin check.
