@@ -47,11 +47,13 @@
 pub(crate) mod build;
 mod cache;
 mod heap;
+mod index;
 mod quadric;
 mod records;
 
 pub use build::BuildOptions;
-pub use cache::{CacheIndex, PolygonCache};
+pub use cache::PolygonCache;
+pub use index::CacheIndex;
 
 use crate::mesh::{IndexedMesh, MeshError};
 use records::Layout;

@@ -6,7 +6,7 @@
 //! of whose steps rewrites more than 4,095 corners, is kept narrow: 16-bit indices and pairs,
 //! 16-bit step headers and 3-byte corner records. Anything else is kept wide (32 bits each).
 
-use super::cache::CacheIndex;
+use super::index::CacheIndex;
 
 /// A step's header packed into one integer: `corners << 4 | pairs << 2 | removed`. A step
 /// removes at most two triangles and has at most two vertex pairs (one per edge triangle).

@@ -197,8 +197,8 @@ impl Scratch {
     /// The region's active triangles `indices` into `out`, less fins.
     ///
     /// No triangle of a region ever loses its area, and only the region's fin-prone border
-    /// triangles (usually none, see `regions::fin_prone`) can come to sit on the same three
-    /// positions as another: every other triangle is copied without a look.
+    /// triangles (usually none, see `regions::borders::fin_prone`) can come to sit on the
+    /// same three positions as another: every other triangle is copied without a look.
     fn write<I: CacheIndex, J: CacheIndex>(
         &mut self,
         data: &super::Region,

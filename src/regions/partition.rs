@@ -1,6 +1,7 @@
 //! Vertex partitions: which region each vertex belongs to.
 
-use super::{RegionError, find, unite};
+use super::RegionError;
+use super::util::{find, unite};
 use crate::mesh::{IndexedMesh, weld_positions};
 use glam::Vec3;
 

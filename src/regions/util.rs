@@ -1,0 +1,39 @@
+//! Helpers the partition, the build, the bands and the borders share: union-find, and the
+//! attributes of a subset of a mesh's vertices.
+
+use crate::mesh::IndexedMesh;
+
+/// Union-find over `parent` (each entry its parent, roots their own): the root of `x`, with
+/// path halving.
+pub(super) fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        parent[x as usize] = parent[parent[x as usize] as usize];
+        x = parent[x as usize];
+    }
+    x
+}
+
+/// Union-find: joins the sets of `a` and `b` under the smaller root.
+pub(super) fn unite(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    parent[ra.max(rb) as usize] = ra.min(rb);
+}
+
+/// The attributes of `vertices`, in that order, with no triangles.
+pub(super) fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
+    fn pick<T: Copy>(v: &Option<Vec<T>>, vertices: &[u32]) -> Option<Vec<T>> {
+        v.as_ref()
+            .map(|v| vertices.iter().map(|&i| v[i as usize]).collect())
+    }
+    IndexedMesh {
+        positions: vertices
+            .iter()
+            .map(|&i| mesh.positions[i as usize])
+            .collect(),
+        normals: pick(&mesh.normals, vertices),
+        uvs: pick(&mesh.uvs, vertices),
+        joints: pick(&mesh.joints, vertices),
+        weights: pick(&mesh.weights, vertices),
+        indices: Vec::new(),
+    }
+}
