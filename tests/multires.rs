@@ -93,10 +93,7 @@ fn the_error_table_records_unscaled_errors() {
     let mesh = flat_square();
     let expected = (1e-7f32).sqrt() / 8f32.sqrt();
     for weight_exponent in [0.0, 0.25, 1.0] {
-        let options = BuildOptions {
-            weight_exponent,
-            ..BuildOptions::default()
-        };
+        let options = BuildOptions::default().with_weight_exponent(weight_exponent);
         let pm = ProgressiveMesh::build(&mesh, &options).expect("valid mesh");
         let error = pm.level_error(1);
         // The table rounds up by at most 0.8 % (16 bits).
@@ -282,11 +279,9 @@ fn local_error_keeps_fandisks_creases() {
     // error), so both builds here rank by the plain mean.
     let mesh = testdata_mesh("fandisk.obj");
     let hausdorff = |local_weight| {
-        let options = BuildOptions {
-            local_weight,
-            weight_exponent: 0.0,
-            ..BuildOptions::default()
-        };
+        let options = BuildOptions::default()
+            .with_local_weight(local_weight)
+            .with_weight_exponent(0.0);
         let pm = ProgressiveMesh::build(&mesh, &options).expect("valid mesh");
         let mut cache = PolygonCache::new(&pm);
         cache.set_triangle_count(&pm, mesh.triangle_count() / 10);

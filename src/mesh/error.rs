@@ -80,6 +80,16 @@ pub enum MeshError {
         /// The attribute's count.
         found: usize,
     },
+    /// The mesh is larger than the crate's index types can address.
+    #[error("the mesh is too large: {count} {what}, more than the {limit} this crate can index")]
+    TooLarge {
+        /// What there is too much of: `triangles`, `vertices`, ...
+        what: &'static str,
+        /// How many there are.
+        count: u64,
+        /// The most there may be.
+        limit: u64,
+    },
     /// A glTF document is structurally invalid (unresolved references, bad GLB container,
     /// missing buffers, ...).
     #[error("invalid glTF: {message}")]

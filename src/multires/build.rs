@@ -22,8 +22,16 @@ use super::records::{Layout, Unpacked, error_to_u16};
 use crate::mesh::{IndexedMesh, MeshError, weld_positions};
 use glam::{DVec3, Vec3};
 
-/// Settings of [`ProgressiveMesh::build`].
+/// Settings of [`ProgressiveMesh::build`]. Start from `default()` and change a field with its
+/// setter:
+///
+/// ```
+/// use bevy_aslod::multires::BuildOptions;
+/// let fast = BuildOptions::default().with_local_weight(0.0).with_min_triangles(100);
+/// assert_eq!((fast.local_weight, fast.min_triangles), (0.0, 100));
+/// ```
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct BuildOptions {
     /// Stop collapsing at this many triangles (the base mesh may end up larger when nothing
     /// more can collapse without breaking the surface). Default: `0`, as coarse as possible.
@@ -78,6 +86,16 @@ pub struct BuildOptions {
     /// ones count as `0.0` (with a warning).
     pub weight_exponent: f64,
 }
+
+with_setters!(BuildOptions {
+    min_triangles: usize => with_min_triangles,
+    max_error: f32 => with_max_error,
+    border_weight: f64 => with_border_weight,
+    min_normal_cos: f64 => with_min_normal_cos,
+    regularization: f64 => with_regularization,
+    local_weight: f64 => with_local_weight,
+    weight_exponent: f64 => with_weight_exponent,
+});
 
 impl Default for BuildOptions {
     fn default() -> Self {
@@ -1452,14 +1470,11 @@ pub(crate) fn build(
 ) -> Result<Built, MeshError> {
     // Corner ids are packed with one flag bit into a u32.
     if mesh.indices.len() >= (1 << 31) {
-        return Err(MeshError::parse(
-            "mesh",
-            "index buffer",
-            format!(
-                "{} triangles is more than the 715 million a progressive mesh can hold",
-                mesh.triangle_count()
-            ),
-        ));
+        return Err(MeshError::TooLarge {
+            what: "triangles",
+            count: mesh.triangle_count() as u64,
+            limit: ((1u64 << 31) - 1) / 3,
+        });
     }
     for (name, value) in [
         ("border_weight", options.border_weight),
@@ -1484,12 +1499,10 @@ pub(crate) fn build(
     builder.run(progress);
     builder
         .finish(owned.min(mesh.triangle_count()))
-        .ok_or_else(|| {
-            MeshError::parse(
-                "mesh",
-                "index buffer",
-                "its collapse records do not fit 32-bit records",
-            )
+        .ok_or(MeshError::TooLarge {
+            what: "corners in the collapse records",
+            count: mesh.indices.len() as u64,
+            limit: u64::from(u32::MAX),
         })
 }
 

@@ -83,7 +83,7 @@ impl ProgressiveMesh {
     /// triangles are dropped and bad input is reported rather than built.
     ///
     /// # Errors
-    /// Any [`MeshError`] from [`IndexedMesh::validate`], and [`MeshError::Parse`] for a mesh
+    /// Any [`MeshError`] from [`IndexedMesh::validate`], and [`MeshError::TooLarge`] for a mesh
     /// too large to index (over 715 million triangles).
     pub fn build(mesh: &IndexedMesh, options: &BuildOptions) -> Result<Self, MeshError> {
         Self::build_with(mesh, options, None, &mut |_, _| {})

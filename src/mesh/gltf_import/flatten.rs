@@ -192,9 +192,11 @@ impl Builder {
 
         let base = self.mesh.positions.len();
         if base + vertex_count > u32::MAX as usize {
-            return Err(gltf_error(format!(
-                "{at}: more than 2^32 vertices in the scene"
-            )));
+            return Err(MeshError::TooLarge {
+                what: "vertices in the glTF scene",
+                count: (base + vertex_count) as u64,
+                limit: u64::from(u32::MAX),
+            });
         }
         let m = instance.transform;
         let linear = Mat3::from_mat4(m);

@@ -63,6 +63,7 @@ pub fn load_gltf(path: &Path) -> MeshResult<GltfImport> {
 ///   triangle is counted within the primitive).
 /// - [`MeshError::IndexCountNotMultipleOfThree`] for a triangle-list primitive whose index
 ///   count is not a multiple of three.
+/// - [`MeshError::TooLarge`] when the scene holds more vertices than 32-bit indices address.
 /// - Any error of [`IndexedMesh::validate`] on the flattened mesh.
 ///
 /// [`IndexedMesh::validate`]: super::IndexedMesh::validate
