@@ -1,6 +1,7 @@
 //! Clipping, in `f64`: the part of a box in front of the near plane, and polygons against the
 //! viewport.
 
+use crate::budget::hull::{PointStack, monotone_chain};
 use glam::{DVec2, DVec4, Vec4Swizzles};
 
 /// Corner `i` of a box with centre `c` and half axes `a` (in whatever space, or any linear
@@ -136,11 +137,13 @@ impl Polygon {
         }
     }
 
-    /// The convex hull of the points (Andrew's monotone chain), counter-clockwise.
+    /// The convex hull of the points, counter-clockwise ([`monotone_chain`]).
     fn convex_hull(&self) -> Polygon {
         let mut sorted = *self;
         let pts = &mut sorted.points[..sorted.len];
-        // Insertion sort: at most 14 points.
+        // Insertion sort: at most 14 points. By `>` on `(x, y)`, which takes −0 and +0 as
+        // equal, as the chain needs; `convex_hull_2d`'s `total_cmp` puts −0 first, which can
+        // lose a vertex when both zeros share the smallest or largest x.
         for i in 1..pts.len() {
             let mut j = i;
             while j > 0 && (pts[j - 1].x, pts[j - 1].y) > (pts[j].x, pts[j].y) {
@@ -149,34 +152,30 @@ impl Polygon {
             }
         }
         let mut hull = Polygon::new();
-        if pts.len() < 3 {
-            for &p in pts.iter() {
-                hull.push(p);
-            }
-            return hull;
-        }
-        let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
-        let mut k = 0;
-        let mut out = [DVec2::ZERO; Self::CAPACITY + 1];
-        for &p in pts.iter() {
-            while k >= 2 && cross(out[k - 2], out[k - 1], p) <= 0.0 {
-                k -= 1;
-            }
-            out[k] = p;
-            k += 1;
-        }
-        let lower = k + 1;
-        for &p in pts.iter().rev().skip(1) {
-            while k >= lower && cross(out[k - 2], out[k - 1], p) <= 0.0 {
-                k -= 1;
-            }
-            out[k] = p;
-            k += 1;
-        }
-        for &p in &out[..k.saturating_sub(1)] {
-            hull.push(p);
-        }
+        monotone_chain(pts, &mut hull);
         hull
+    }
+}
+
+impl PointStack for Polygon {
+    #[inline]
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    #[inline]
+    fn push(&mut self, p: DVec2) {
+        Polygon::push(self, p);
+    }
+
+    #[inline]
+    fn pop(&mut self) {
+        self.len = self.len.saturating_sub(1);
+    }
+
+    #[inline]
+    fn as_slice(&self) -> &[DVec2] {
+        Polygon::as_slice(self)
     }
 }
 
