@@ -24,8 +24,8 @@ use lanes::Lanes;
 /// boxes" (1999), made exact for what the 1999 method leaves out. The eye, moved into the
 /// box's frame, lies outside some of the six face planes. One bit per
 /// plane gives a 6-bit code; the code picks a row of a 64-entry table that lists the corners of
-/// the box's outline in order ([`silhouette`]). Only those 4 or 6 corners are projected, and the
-/// shoelace formula gives the outline's area. Beyond the paper:
+/// the box's outline in order ([`silhouette`](fn@silhouette)). Only those 4 or 6 corners are
+/// projected, and the shoelace formula gives the outline's area. Beyond the paper:
 ///
 /// - **Near plane.** A box wholly behind the near plane has no area. A box that straddles it is
 ///   clipped as a volume: its visible part is the convex hull of the corners in front and the

@@ -4,9 +4,9 @@
 use super::clip::{Polygon, corner_clip, shoelace};
 use glam::{DVec2, DVec4, Vec3A, Vec3Swizzles, Vec4, Vec4Swizzles};
 
-/// The NDC area of the outline `outline` (corner numbers, as [`silhouette`](super::silhouette)
-/// gives them) of a box with clip-space centre `c` and half axes `a`, wholly in front of the
-/// near plane.
+/// The NDC area of the outline `outline` (corner numbers, as
+/// [`silhouette`](fn@super::silhouette) gives them) of a box with clip-space centre `c` and
+/// half axes `a`, wholly in front of the near plane.
 ///
 /// Each corner is measured from the centre's projection, not from the NDC origin: corner
 /// `c + d` projects to `c.xy / c.w + (d.xy · c.w − c.xy · d.w) / (c.w · (c.w + d.w))`, and
