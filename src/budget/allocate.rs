@@ -1,4 +1,8 @@
 //! Splitting the polygon budget among regions; the method is on [`allocate`].
+//!
+//! After the public types and the driver, [`Allocator::allocate_with`], the file follows the
+//! phases in the order they run (the list on [`allocate`]); the unit tests are in
+//! `allocate/tests.rs`.
 
 use super::BudgetError;
 
@@ -189,17 +193,6 @@ pub struct Allocator {
     last_level: Option<(f64, f64)>,
 }
 
-/// A region the water-level search has not settled yet: its breakpoints `min/s` and `max/s`,
-/// its share `s` and its bounds, packed so the search streams through memory.
-#[derive(Clone, Copy, Debug, Default)]
-struct Pending {
-    lower: f64,
-    upper: f64,
-    share: f64,
-    min: f64,
-    max: f64,
-}
-
 /// Splits `params.budget` among `regions` into `out` (one count per region, in order) with a
 /// fresh [`Allocator`]; see [`Allocator::allocate`], which reuses its scratch space.
 ///
@@ -367,7 +360,103 @@ impl Allocator {
         report.total = out.iter().map(|&p| u64::from(p)).sum();
         Ok(report)
     }
+}
 
+// ---------------------------------------------------------------------------------------------
+// Phase 1: validation (for α ≥ 1 also the shares and the water level's guessed first round)
+// ---------------------------------------------------------------------------------------------
+
+/// What [`scan`] adds up over the regions.
+#[derive(Clone, Copy, Debug, Default)]
+struct Totals {
+    /// `Σ minᵢ`.
+    min_total: u64,
+    /// The largest weight (`0` when there is none).
+    max_weight: f32,
+}
+
+/// The checks listed on [`allocate`] (the first invalid region in order is the one named),
+/// and the totals the allocation starts from; with `shares`, the shares for α ≥ 1 too, and
+/// with `first` also the water level's first round over them (its open regions into the
+/// given buffer, by chunks, and each chunk's part, which [`Allocator::combine`] packs; the
+/// parts are empty without `first`).
+fn scan(
+    params: &AllocationParams,
+    regions: &[RegionInput],
+    shares: Option<&mut [f64]>,
+    first: Option<(FirstRound, &mut [Pending])>,
+    executor: &impl Executor,
+) -> Result<(Totals, Vec<Gathered>), BudgetError> {
+    if params.alpha.is_nan() || params.alpha <= 0.0 {
+        return Err(BudgetError::InvalidAlpha(params.alpha));
+    }
+    if params.budget == 0 {
+        return Err(BudgetError::ZeroBudget);
+    }
+    // Without `shares` (or `first`), every chunk gets an empty slice to fill: nothing.
+    let mut shares = shares.map(|s| s.chunks_mut(CHUNK));
+    let (round, open) = first.unzip();
+    let mut open = open.map(|o| o.chunks_mut(CHUNK));
+    let mut jobs: Vec<_> = regions
+        .chunks(CHUNK)
+        .enumerate()
+        .map(|(c, regions)| {
+            let shares = shares.as_mut().and_then(Iterator::next).unwrap_or_default();
+            let open = open.as_mut().and_then(Iterator::next).unwrap_or_default();
+            let result = Ok((Totals::default(), Gathered::default()));
+            (c * CHUNK, regions, shares, open, result)
+        })
+        .collect();
+    let alpha = params.alpha;
+    executor.for_each(&mut jobs, &|(start, regions, shares, open, result)| {
+        *result = validate(*start, regions).map(|()| {
+            let totals = Totals {
+                min_total: regions.iter().map(|r| u64::from(r.min)).sum(),
+                max_weight: regions.iter().fold(0.0f32, |m, r| m.max(r.weight)),
+            };
+            fill_shares(shares, regions, 1.0, alpha);
+            let gathered = round.map_or_else(Gathered::default, |round| {
+                gather(regions, shares, open, round)
+            });
+            (totals, gathered)
+        });
+    });
+    let mut all = Totals::default();
+    let mut parts = Vec::with_capacity(jobs.len());
+    for (_, _, _, _, result) in jobs {
+        let (totals, gathered) = result?;
+        all.min_total += totals.min_total;
+        all.max_weight = all.max_weight.max(totals.max_weight);
+        parts.push(gathered);
+    }
+    Ok((all, parts))
+}
+
+/// Every region's weight and bounds; `start` is the index of `regions[0]`.
+fn validate(start: usize, regions: &[RegionInput]) -> Result<(), BudgetError> {
+    for (i, r) in regions.iter().enumerate() {
+        if !(r.weight.is_finite() && r.weight >= 0.0) {
+            return Err(BudgetError::InvalidWeight {
+                region: start + i,
+                weight: r.weight,
+            });
+        }
+        if r.min > r.max {
+            return Err(BudgetError::MinAboveMax {
+                region: start + i,
+                min: r.min,
+                max: r.max,
+            });
+        }
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Phase 2: shares (for α < 1; for α ≥ 1 the validation pass computes them)
+// ---------------------------------------------------------------------------------------------
+
+impl Allocator {
     /// `sᵢ = (wᵢ / w_max)^(1/α)` (for α < 1), `0` for weightless regions and for regions
     /// whose bounds leave nothing to decide.
     fn compute_shares(
@@ -390,7 +479,81 @@ impl Allocator {
             fill_shares(shares, regions, scale, alpha);
         });
     }
+}
 
+/// `shares[i] = (wᵢ · scale)^(1/α)` for regions with a weight and room between their bounds,
+/// else 0.
+fn fill_shares(shares: &mut [f64], regions: &[RegionInput], scale: f64, alpha: f32) {
+    let alpha = f64::from(alpha);
+    if alpha == 1.0 {
+        fill_shares_with(shares, regions, scale, |x| x);
+    } else if alpha == 2.0 {
+        fill_shares_with(shares, regions, scale, f64::sqrt);
+    } else if alpha == 3.0 {
+        fill_shares_with(shares, regions, scale, cbrt_normal);
+    } else if alpha.is_infinite() {
+        fill_shares_with(shares, regions, scale, |_| 1.0);
+    } else {
+        // log2 then exp2 (glibc's are fast and exact to an ulp); underflow gives 0.
+        let exponent = 1.0 / alpha;
+        fill_shares_with(shares, regions, scale, |x| (x.log2() * exponent).exp2());
+    }
+}
+
+/// `shares[i] = f(wᵢ · scale)` for regions with a weight and room between their bounds, else 0.
+///
+/// A share below [`MIN_SHARE`] counts as 0 too: its region's ideal count is below a triangle
+/// for any budget, and `1 / s` must stay finite for the breakpoints (only α < 1 reaches it).
+#[inline]
+fn fill_shares_with(
+    shares: &mut [f64],
+    regions: &[RegionInput],
+    scale: f64,
+    f: impl Fn(f64) -> f64,
+) {
+    for (share, r) in shares.iter_mut().zip(regions) {
+        *share = if r.weight > 0.0 && r.max > r.min {
+            let s = f(f64::from(r.weight) * scale);
+            if s >= MIN_SHARE { s } else { 0.0 }
+        } else {
+            0.0
+        };
+    }
+}
+
+/// The smallest share (relative to the largest, which is 1) that takes part in the split;
+/// below it only an α far under 1 with weights many orders apart can go.
+const MIN_SHARE: f64 = 1e-200;
+
+/// The cube root of a positive normal `x`: a bit-level first guess (about 3 % off), then three
+/// Halley steps, each of which triples the correct digits; within 2 ulp, and about five times
+/// faster than `f64::cbrt` (α = 3 is the default, so this is the common path).
+#[inline]
+fn cbrt_normal(x: f64) -> f64 {
+    let mut y = f64::from_bits(x.to_bits() / 3 + 0x2A9F_7893_782D_A1CE);
+    for _ in 0..3 {
+        let y3 = y * y * y;
+        y *= (y3 + 2.0 * x) / (2.0 * y3 + x);
+    }
+    y
+}
+
+// ---------------------------------------------------------------------------------------------
+// Phase 3: water level
+// ---------------------------------------------------------------------------------------------
+
+/// A region the water-level search has not settled yet: its breakpoints `min/s` and `max/s`,
+/// its share `s` and its bounds, packed so the search streams through memory.
+#[derive(Clone, Copy, Debug, Default)]
+struct Pending {
+    lower: f64,
+    upper: f64,
+    share: f64,
+    min: f64,
+    max: f64,
+}
+
+impl Allocator {
     /// The scale `λ` with `Σ clamp(λ·sᵢ, minᵢ, maxᵢ) = target`, or `None` when even every
     /// region at its maximum stays within `target`.
     ///
@@ -649,7 +812,185 @@ impl Allocator {
             count: 1,
         }
     }
+}
 
+/// The water level's first round: its pivots, and the bracket it settles regions against.
+#[derive(Clone, Copy, Debug)]
+struct FirstRound {
+    pivots: Pivots,
+    bracket: (f64, f64),
+}
+
+impl FirstRound {
+    /// The round guessed from the last level and its last move ([`guessed_bracket`]): that
+    /// level and the bracket's ends as pivots.
+    fn around(last: (f64, f64)) -> Self {
+        let (a, level, b) = guessed_bracket(last);
+        Self {
+            pivots: Pivots {
+                values: [a, level, b],
+                count: 3,
+            },
+            bracket: (a, b),
+        }
+    }
+}
+
+/// The first round's bracket and middle pivot, from the last level and how far it moved
+/// (relative): twice that move either side, at least 1/64 and at most 1/8 of the level.
+fn guessed_bracket((level, moved): (f64, f64)) -> (f64, f64, f64) {
+    let half = (2.0 * moved).clamp(1.0 / 64.0, 0.125);
+    (level * (1.0 - half), level, level * (1.0 + half))
+}
+
+/// What the water level's first round learns from one chunk of regions.
+#[derive(Clone, Copy, Debug, Default)]
+struct Gathered {
+    /// Regions with a share that the bracket does not settle, written to the front of the
+    /// chunk's `open`.
+    open: usize,
+    /// `Σ min` of the regions without a share.
+    fixed: f64,
+    /// `Σ max` of the regions with a share.
+    max_total: f64,
+    /// `Σ clamp(p·s, min, max)` over the regions with a share, at each pivot `p`.
+    sums: [f64; 3],
+    /// Over the regions with a share that the bracket settles: `Σ min` of those at their
+    /// minimum, `Σ max` of those at their maximum, `Σ s` of the linear ones.
+    at_min: f64,
+    at_max: f64,
+    linear: f64,
+}
+
+/// The water level's first pass over one chunk: the chunk's part of `g` at the round's
+/// pivots, what its bracket `(lo, hi)` settles (nothing for `(-∞, ∞)`), and the regions with
+/// a share that it does not settle into `open` (at the front, in order).
+///
+/// The loop writes its output slot unconditionally and advances by a 0/1 flag, and adds
+/// flag-weighted terms instead of branching (see [`Allocator::water_level`]).
+fn gather(
+    regions: &[RegionInput],
+    shares: &[f64],
+    open_out: &mut [Pending],
+    round: FirstRound,
+) -> Gathered {
+    let [p0, p1, p2] = round.pivots.padded();
+    let (lo, hi) = round.bracket;
+    let mut g = Gathered::default();
+    for (r, &s) in regions.iter().zip(shares) {
+        let (min, max) = (f64::from(r.min), f64::from(r.max));
+        let active = s > 0.0;
+        let inverse = 1.0 / s; // ∞ when inactive, and then unused
+        let e = Pending {
+            lower: min * inverse,
+            upper: max * inverse,
+            share: s,
+            min,
+            max,
+        };
+        let below = active & (e.upper <= lo);
+        let above = active & (e.lower >= hi);
+        let linear = active & (e.lower <= lo) & (e.upper >= hi);
+        let open = active & !(below | above | linear);
+        open_out[g.open] = e;
+        g.open += usize::from(open);
+        g.fixed += min * flag(!active);
+        g.max_total += max * flag(active);
+        g.at_max += max * flag(below);
+        g.at_min += min * flag(above);
+        g.linear += s * flag(linear);
+        // An inactive region has s = 0, so these add min · 0.
+        let weight = flag(active);
+        g.sums[0] += weight * (p0 * s).clamp(min, max);
+        g.sums[1] += weight * (p1 * s).clamp(min, max);
+        g.sums[2] += weight * (p2 * s).clamp(min, max);
+    }
+    g
+}
+
+/// Up to three distinct values inside the bracket at which a round evaluates `g`, ascending.
+#[derive(Clone, Copy, Debug, Default)]
+struct Pivots {
+    values: [f64; 3],
+    count: usize,
+}
+
+impl Pivots {
+    /// The quartiles of `values` that lie strictly inside `(lo, hi)` (of an evenly strided
+    /// subset when there are many). Reorders `values`.
+    fn quartiles(values: &mut Vec<f64>, lo: f64, hi: f64) -> Self {
+        values.retain(|&b| lo < b && b < hi);
+        const SAMPLE: usize = 255;
+        if values.len() > SAMPLE {
+            let stride = values.len() / SAMPLE;
+            for k in 0..SAMPLE {
+                values[k] = values[k * stride];
+            }
+            values.truncate(SAMPLE);
+        }
+        values.sort_unstable_by(f64::total_cmp);
+        let mut pivots = Self::default();
+        let n = values.len();
+        if n == 0 {
+            return pivots;
+        }
+        for q in [n / 4, n / 2, (3 * n) / 4] {
+            let p = values[q];
+            if pivots.count == 0 || p > pivots.values[pivots.count - 1] {
+                pivots.values[pivots.count] = p;
+                pivots.count += 1;
+            }
+        }
+        pivots
+    }
+
+    /// All three slots, the unused ones repeating the last pivot (or 0 when there is none).
+    fn padded(&self) -> [f64; 3] {
+        let last = if self.count == 0 {
+            0.0
+        } else {
+            self.values[self.count - 1]
+        };
+        std::array::from_fn(|k| if k < self.count { self.values[k] } else { last })
+    }
+
+    /// Moves `lo` up to every pivot where `g ≤ target` and `hi` down to the first where it is
+    /// above; `at_or_below(k)` says which for pivot `k`.
+    fn narrow(&self, lo: &mut f64, hi: &mut f64, at_or_below: impl Fn(usize) -> bool) {
+        for k in 0..self.count {
+            if at_or_below(k) {
+                *lo = self.values[k];
+            } else {
+                *hi = self.values[k];
+                break;
+            }
+        }
+    }
+}
+
+/// `g` on a bracket `[lo, hi]` with no breakpoint inside, over one chunk: the offset (the
+/// regions at their minimum or maximum there, and those without a share) and the slope (the
+/// shares of the linear ones). The breakpoints are computed as in [`gather`].
+fn linear_piece(regions: &[RegionInput], shares: &[f64], lo: f64, hi: f64) -> (f64, f64) {
+    let (mut fixed, mut slope) = (0.0, 0.0);
+    for (r, &s) in regions.iter().zip(shares) {
+        let (min, max) = (f64::from(r.min), f64::from(r.max));
+        let active = s > 0.0;
+        let inverse = 1.0 / s;
+        let below = active & (max * inverse <= lo);
+        let above = active & !below & (min * inverse >= hi);
+        let linear = active & !(below | above);
+        fixed += max * flag(below) + min * flag(above | !active);
+        slope += s * flag(linear);
+    }
+    (fixed, slope)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Phase 4: rounding
+// ---------------------------------------------------------------------------------------------
+
+impl Allocator {
     /// Floors of the targets, then +1 for the largest remainders until the total reaches
     /// `available` (never past it).
     fn round(
@@ -724,7 +1065,70 @@ impl Allocator {
             }
         }
     }
+}
 
+/// What rounding one chunk down gave.
+#[derive(Clone, Copy, Debug, Default)]
+struct Floors {
+    /// `Σ ⌊pᵢ⌋`.
+    total: u64,
+    /// Regions at (or clamped up to) their `min`.
+    at_min: usize,
+    /// Regions with a share clamped down to their `max`.
+    at_max: usize,
+    /// Regions that may take one more triangle, ranked at the front of the chunk's `ranked`.
+    ranked: usize,
+}
+
+/// One chunk's targets `clamp(λ·sᵢ, minᵢ, maxᵢ)` rounded down into `out`, and the rank keys
+/// of the regions that can take one more triangle into `ranked` (at the front). `start` is the
+/// chunk's first region.
+///
+/// Branch-free again. A weightless region has λ·0 = 0 ≤ min, so it lands on its min with no
+/// remainder, and it is never ranked for an extra triangle.
+fn floor_targets(
+    start: usize,
+    regions: &[RegionInput],
+    shares: &[f64],
+    lambda: f64,
+    out: &mut [u32],
+    ranked: &mut [u128],
+) -> Floors {
+    let mut f = Floors::default();
+    for (i, ((r, &s), slot)) in regions.iter().zip(shares).zip(out).enumerate() {
+        let (min, max) = (f64::from(r.min), f64::from(r.max));
+        let want = lambda * s;
+        let t = want.clamp(min, max);
+        let p = t as u32; // t ≥ 0, so truncation is the floor; in [min, max]
+        *slot = p;
+        f.total += u64::from(p);
+        f.at_min += usize::from(want <= min);
+        f.at_max += usize::from((want >= max) & (s > 0.0));
+        ranked[f.ranked] = rank_key(t - f64::from(p), r.weight, start + i);
+        f.ranked += usize::from((s > 0.0) & (p < r.max));
+    }
+    f
+}
+
+/// The rounding order as one integer, larger first: remainder, then weight, then lower index.
+/// Both floats are non-negative, where the bit pattern orders like the value.
+#[inline]
+fn rank_key(remainder: f64, weight: f32, index: usize) -> u128 {
+    (u128::from(remainder.to_bits()) << 64)
+        | (u128::from(weight.to_bits()) << 32)
+        | u128::from(!(index as u32))
+}
+
+#[inline]
+fn rank_index(key: u128) -> usize {
+    !(key as u32) as usize
+}
+
+// ---------------------------------------------------------------------------------------------
+// Phase 5: hysteresis
+// ---------------------------------------------------------------------------------------------
+
+impl Allocator {
     /// Keeps `current` where the target moved by at most `epsilon`, then releases the kept
     /// regions that cost the most until the total fits in `available`.
     fn hysteresis(
@@ -821,6 +1225,10 @@ impl Allocator {
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Shared by the phases
+// ---------------------------------------------------------------------------------------------
+
 /// Moves the first `lens[c]` items of every chunk `c` of `buffer` (chunks of [`CHUNK`])
 /// together at its front, in order, and returns how many there are.
 fn pack_chunks<T: Copy>(buffer: &mut [T], lens: impl IntoIterator<Item = usize>) -> usize {
@@ -833,174 +1241,6 @@ fn pack_chunks<T: Copy>(buffer: &mut [T], lens: impl IntoIterator<Item = usize>)
     packed
 }
 
-/// The first round's bracket and middle pivot, from the last level and how far it moved
-/// (relative): twice that move either side, at least 1/64 and at most 1/8 of the level.
-fn guessed_bracket((level, moved): (f64, f64)) -> (f64, f64, f64) {
-    let half = (2.0 * moved).clamp(1.0 / 64.0, 0.125);
-    (level * (1.0 - half), level, level * (1.0 + half))
-}
-
-/// The water level's first round: its pivots, and the bracket it settles regions against.
-#[derive(Clone, Copy, Debug)]
-struct FirstRound {
-    pivots: Pivots,
-    bracket: (f64, f64),
-}
-
-impl FirstRound {
-    /// The round guessed from the last level and its last move ([`guessed_bracket`]): that
-    /// level and the bracket's ends as pivots.
-    fn around(last: (f64, f64)) -> Self {
-        let (a, level, b) = guessed_bracket(last);
-        Self {
-            pivots: Pivots {
-                values: [a, level, b],
-                count: 3,
-            },
-            bracket: (a, b),
-        }
-    }
-}
-
-/// What the water level's first round learns from one chunk of regions.
-#[derive(Clone, Copy, Debug, Default)]
-struct Gathered {
-    /// Regions with a share that the bracket does not settle, written to the front of the
-    /// chunk's `open`.
-    open: usize,
-    /// `Σ min` of the regions without a share.
-    fixed: f64,
-    /// `Σ max` of the regions with a share.
-    max_total: f64,
-    /// `Σ clamp(p·s, min, max)` over the regions with a share, at each pivot `p`.
-    sums: [f64; 3],
-    /// Over the regions with a share that the bracket settles: `Σ min` of those at their
-    /// minimum, `Σ max` of those at their maximum, `Σ s` of the linear ones.
-    at_min: f64,
-    at_max: f64,
-    linear: f64,
-}
-
-/// The water level's first pass over one chunk: the chunk's part of `g` at the round's
-/// pivots, what its bracket `(lo, hi)` settles (nothing for `(-∞, ∞)`), and the regions with
-/// a share that it does not settle into `open` (at the front, in order).
-///
-/// The loop writes its output slot unconditionally and advances by a 0/1 flag, and adds
-/// flag-weighted terms instead of branching (see [`Allocator::water_level`]).
-fn gather(
-    regions: &[RegionInput],
-    shares: &[f64],
-    open_out: &mut [Pending],
-    round: FirstRound,
-) -> Gathered {
-    let [p0, p1, p2] = round.pivots.padded();
-    let (lo, hi) = round.bracket;
-    let mut g = Gathered::default();
-    for (r, &s) in regions.iter().zip(shares) {
-        let (min, max) = (f64::from(r.min), f64::from(r.max));
-        let active = s > 0.0;
-        let inverse = 1.0 / s; // ∞ when inactive, and then unused
-        let e = Pending {
-            lower: min * inverse,
-            upper: max * inverse,
-            share: s,
-            min,
-            max,
-        };
-        let below = active & (e.upper <= lo);
-        let above = active & (e.lower >= hi);
-        let linear = active & (e.lower <= lo) & (e.upper >= hi);
-        let open = active & !(below | above | linear);
-        open_out[g.open] = e;
-        g.open += usize::from(open);
-        g.fixed += min * flag(!active);
-        g.max_total += max * flag(active);
-        g.at_max += max * flag(below);
-        g.at_min += min * flag(above);
-        g.linear += s * flag(linear);
-        // An inactive region has s = 0, so these add min · 0.
-        let weight = flag(active);
-        g.sums[0] += weight * (p0 * s).clamp(min, max);
-        g.sums[1] += weight * (p1 * s).clamp(min, max);
-        g.sums[2] += weight * (p2 * s).clamp(min, max);
-    }
-    g
-}
-
-/// `g` on a bracket `[lo, hi]` with no breakpoint inside, over one chunk: the offset (the
-/// regions at their minimum or maximum there, and those without a share) and the slope (the
-/// shares of the linear ones). The breakpoints are computed as in [`gather`].
-fn linear_piece(regions: &[RegionInput], shares: &[f64], lo: f64, hi: f64) -> (f64, f64) {
-    let (mut fixed, mut slope) = (0.0, 0.0);
-    for (r, &s) in regions.iter().zip(shares) {
-        let (min, max) = (f64::from(r.min), f64::from(r.max));
-        let active = s > 0.0;
-        let inverse = 1.0 / s;
-        let below = active & (max * inverse <= lo);
-        let above = active & !below & (min * inverse >= hi);
-        let linear = active & !(below | above);
-        fixed += max * flag(below) + min * flag(above | !active);
-        slope += s * flag(linear);
-    }
-    (fixed, slope)
-}
-
-/// What rounding one chunk down gave.
-#[derive(Clone, Copy, Debug, Default)]
-struct Floors {
-    /// `Σ ⌊pᵢ⌋`.
-    total: u64,
-    /// Regions at (or clamped up to) their `min`.
-    at_min: usize,
-    /// Regions with a share clamped down to their `max`.
-    at_max: usize,
-    /// Regions that may take one more triangle, ranked at the front of the chunk's `ranked`.
-    ranked: usize,
-}
-
-/// One chunk's targets `clamp(λ·sᵢ, minᵢ, maxᵢ)` rounded down into `out`, and the rank keys
-/// of the regions that can take one more triangle into `ranked` (at the front). `start` is the
-/// chunk's first region.
-///
-/// Branch-free again. A weightless region has λ·0 = 0 ≤ min, so it lands on its min with no
-/// remainder, and it is never ranked for an extra triangle.
-fn floor_targets(
-    start: usize,
-    regions: &[RegionInput],
-    shares: &[f64],
-    lambda: f64,
-    out: &mut [u32],
-    ranked: &mut [u128],
-) -> Floors {
-    let mut f = Floors::default();
-    for (i, ((r, &s), slot)) in regions.iter().zip(shares).zip(out).enumerate() {
-        let (min, max) = (f64::from(r.min), f64::from(r.max));
-        let want = lambda * s;
-        let t = want.clamp(min, max);
-        let p = t as u32; // t ≥ 0, so truncation is the floor; in [min, max]
-        *slot = p;
-        f.total += u64::from(p);
-        f.at_min += usize::from(want <= min);
-        f.at_max += usize::from((want >= max) & (s > 0.0));
-        ranked[f.ranked] = rank_key(t - f64::from(p), r.weight, start + i);
-        f.ranked += usize::from((s > 0.0) & (p < r.max));
-    }
-    f
-}
-
-/// The cube root of a positive normal `x`: a bit-level first guess (about 3 % off), then three
-/// Halley steps, each of which triples the correct digits; within 2 ulp, and about five times
-/// faster than `f64::cbrt` (α = 3 is the default, so this is the common path).
-#[inline]
-fn cbrt_normal(x: f64) -> f64 {
-    let mut y = f64::from_bits(x.to_bits() / 3 + 0x2A9F_7893_782D_A1CE);
-    for _ in 0..3 {
-        let y3 = y * y * y;
-        y *= (y3 + 2.0 * x) / (2.0 * y3 + x);
-    }
-    y
-}
-
 /// `1.0` or `0.0`: multiplying by it keeps the compiler from turning the choice back into a
 /// branch, which would mispredict about half the time here.
 #[inline]
@@ -1008,590 +1248,5 @@ fn flag(condition: bool) -> f64 {
     f64::from(u8::from(condition))
 }
 
-/// `shares[i] = (wᵢ · scale)^(1/α)` for regions with a weight and room between their bounds,
-/// else 0.
-fn fill_shares(shares: &mut [f64], regions: &[RegionInput], scale: f64, alpha: f32) {
-    let alpha = f64::from(alpha);
-    if alpha == 1.0 {
-        fill_shares_with(shares, regions, scale, |x| x);
-    } else if alpha == 2.0 {
-        fill_shares_with(shares, regions, scale, f64::sqrt);
-    } else if alpha == 3.0 {
-        fill_shares_with(shares, regions, scale, cbrt_normal);
-    } else if alpha.is_infinite() {
-        fill_shares_with(shares, regions, scale, |_| 1.0);
-    } else {
-        // log2 then exp2 (glibc's are fast and exact to an ulp); underflow gives 0.
-        let exponent = 1.0 / alpha;
-        fill_shares_with(shares, regions, scale, |x| (x.log2() * exponent).exp2());
-    }
-}
-
-/// `shares[i] = f(wᵢ · scale)` for regions with a weight and room between their bounds, else 0.
-///
-/// A share below [`MIN_SHARE`] counts as 0 too: its region's ideal count is below a triangle
-/// for any budget, and `1 / s` must stay finite for the breakpoints (only α < 1 reaches it).
-#[inline]
-fn fill_shares_with(
-    shares: &mut [f64],
-    regions: &[RegionInput],
-    scale: f64,
-    f: impl Fn(f64) -> f64,
-) {
-    for (share, r) in shares.iter_mut().zip(regions) {
-        *share = if r.weight > 0.0 && r.max > r.min {
-            let s = f(f64::from(r.weight) * scale);
-            if s >= MIN_SHARE { s } else { 0.0 }
-        } else {
-            0.0
-        };
-    }
-}
-
-/// The smallest share (relative to the largest, which is 1) that takes part in the split;
-/// below it only an α far under 1 with weights many orders apart can go.
-const MIN_SHARE: f64 = 1e-200;
-
-/// Up to three distinct values inside the bracket at which a round evaluates `g`, ascending.
-#[derive(Clone, Copy, Debug, Default)]
-struct Pivots {
-    values: [f64; 3],
-    count: usize,
-}
-
-impl Pivots {
-    /// The quartiles of `values` that lie strictly inside `(lo, hi)` (of an evenly strided
-    /// subset when there are many). Reorders `values`.
-    fn quartiles(values: &mut Vec<f64>, lo: f64, hi: f64) -> Self {
-        values.retain(|&b| lo < b && b < hi);
-        const SAMPLE: usize = 255;
-        if values.len() > SAMPLE {
-            let stride = values.len() / SAMPLE;
-            for k in 0..SAMPLE {
-                values[k] = values[k * stride];
-            }
-            values.truncate(SAMPLE);
-        }
-        values.sort_unstable_by(f64::total_cmp);
-        let mut pivots = Self::default();
-        let n = values.len();
-        if n == 0 {
-            return pivots;
-        }
-        for q in [n / 4, n / 2, (3 * n) / 4] {
-            let p = values[q];
-            if pivots.count == 0 || p > pivots.values[pivots.count - 1] {
-                pivots.values[pivots.count] = p;
-                pivots.count += 1;
-            }
-        }
-        pivots
-    }
-
-    /// All three slots, the unused ones repeating the last pivot (or 0 when there is none).
-    fn padded(&self) -> [f64; 3] {
-        let last = if self.count == 0 {
-            0.0
-        } else {
-            self.values[self.count - 1]
-        };
-        std::array::from_fn(|k| if k < self.count { self.values[k] } else { last })
-    }
-
-    /// Moves `lo` up to every pivot where `g ≤ target` and `hi` down to the first where it is
-    /// above; `at_or_below(k)` says which for pivot `k`.
-    fn narrow(&self, lo: &mut f64, hi: &mut f64, at_or_below: impl Fn(usize) -> bool) {
-        for k in 0..self.count {
-            if at_or_below(k) {
-                *lo = self.values[k];
-            } else {
-                *hi = self.values[k];
-                break;
-            }
-        }
-    }
-}
-
-/// The rounding order as one integer, larger first: remainder, then weight, then lower index.
-/// Both floats are non-negative, where the bit pattern orders like the value.
-#[inline]
-fn rank_key(remainder: f64, weight: f32, index: usize) -> u128 {
-    (u128::from(remainder.to_bits()) << 64)
-        | (u128::from(weight.to_bits()) << 32)
-        | u128::from(!(index as u32))
-}
-
-#[inline]
-fn rank_index(key: u128) -> usize {
-    !(key as u32) as usize
-}
-
-/// What [`scan`] adds up over the regions.
-#[derive(Clone, Copy, Debug, Default)]
-struct Totals {
-    /// `Σ minᵢ`.
-    min_total: u64,
-    /// The largest weight (`0` when there is none).
-    max_weight: f32,
-}
-
-/// The checks listed on [`allocate`] (the first invalid region in order is the one named),
-/// and the totals the allocation starts from; with `shares`, the shares for α ≥ 1 too, and
-/// with `first` also the water level's first round over them (its open regions into the
-/// given buffer, by chunks, and each chunk's part, which [`Allocator::combine`] packs; the
-/// parts are empty without `first`).
-fn scan(
-    params: &AllocationParams,
-    regions: &[RegionInput],
-    shares: Option<&mut [f64]>,
-    first: Option<(FirstRound, &mut [Pending])>,
-    executor: &impl Executor,
-) -> Result<(Totals, Vec<Gathered>), BudgetError> {
-    if params.alpha.is_nan() || params.alpha <= 0.0 {
-        return Err(BudgetError::InvalidAlpha(params.alpha));
-    }
-    if params.budget == 0 {
-        return Err(BudgetError::ZeroBudget);
-    }
-    // Without `shares` (or `first`), every chunk gets an empty slice to fill: nothing.
-    let mut shares = shares.map(|s| s.chunks_mut(CHUNK));
-    let (round, open) = first.unzip();
-    let mut open = open.map(|o| o.chunks_mut(CHUNK));
-    let mut jobs: Vec<_> = regions
-        .chunks(CHUNK)
-        .enumerate()
-        .map(|(c, regions)| {
-            let shares = shares.as_mut().and_then(Iterator::next).unwrap_or_default();
-            let open = open.as_mut().and_then(Iterator::next).unwrap_or_default();
-            let result = Ok((Totals::default(), Gathered::default()));
-            (c * CHUNK, regions, shares, open, result)
-        })
-        .collect();
-    let alpha = params.alpha;
-    executor.for_each(&mut jobs, &|(start, regions, shares, open, result)| {
-        *result = validate(*start, regions).map(|()| {
-            let totals = Totals {
-                min_total: regions.iter().map(|r| u64::from(r.min)).sum(),
-                max_weight: regions.iter().fold(0.0f32, |m, r| m.max(r.weight)),
-            };
-            fill_shares(shares, regions, 1.0, alpha);
-            let gathered = round.map_or_else(Gathered::default, |round| {
-                gather(regions, shares, open, round)
-            });
-            (totals, gathered)
-        });
-    });
-    let mut all = Totals::default();
-    let mut parts = Vec::with_capacity(jobs.len());
-    for (_, _, _, _, result) in jobs {
-        let (totals, gathered) = result?;
-        all.min_total += totals.min_total;
-        all.max_weight = all.max_weight.max(totals.max_weight);
-        parts.push(gathered);
-    }
-    Ok((all, parts))
-}
-
-/// Every region's weight and bounds; `start` is the index of `regions[0]`.
-fn validate(start: usize, regions: &[RegionInput]) -> Result<(), BudgetError> {
-    for (i, r) in regions.iter().enumerate() {
-        if !(r.weight.is_finite() && r.weight >= 0.0) {
-            return Err(BudgetError::InvalidWeight {
-                region: start + i,
-                weight: r.weight,
-            });
-        }
-        if r.min > r.max {
-            return Err(BudgetError::MinAboveMax {
-                region: start + i,
-                min: r.min,
-                max: r.max,
-            });
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn region(weight: f32, min: u32, max: u32) -> RegionInput {
-        RegionInput {
-            weight,
-            min,
-            max,
-            current: 0,
-        }
-    }
-
-    /// Runs the chunks last first, each on its own scoped thread.
-    struct Backwards;
-
-    impl Executor for Backwards {
-        fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
-            std::thread::scope(|scope| {
-                for item in items.iter_mut().rev() {
-                    scope.spawn(move || f(item));
-                }
-            });
-        }
-    }
-
-    /// A xorshift sequence from `seed`, for the randomized tests.
-    fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
-        move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        }
-    }
-
-    #[test]
-    fn any_executor_gives_the_sequential_result() {
-        // Several chunks, a partial last one, weightless and pinned regions among them.
-        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
-        let regions: Vec<RegionInput> = (0..3 * CHUNK + 517)
-            .map(|_| {
-                let min = (next() % 40) as u32;
-                let max = min + (next() % 400) as u32 * u32::from(!next().is_multiple_of(13));
-                let weight = if next().is_multiple_of(7) {
-                    0.0
-                } else {
-                    (next() % 1_000_000) as f32 * 0.37
-                };
-                RegionInput {
-                    weight,
-                    min,
-                    max,
-                    current: (next() % 420) as u32,
-                }
-            })
-            .collect();
-        for (budget, alpha, hysteresis) in [
-            (1_000_000, 3.0, 0),
-            (400_000, 1.0, 8),
-            (150_000, 2.0, 0),
-            (300_000, 0.7, 3),
-            (u32::MAX, 3.0, 0),
-            (10, 3.0, 0),
-        ] {
-            let params = AllocationParams {
-                budget,
-                alpha,
-                hysteresis,
-                fixed_cost: 0,
-            };
-            let (mut a, mut b) = (Vec::new(), Vec::new());
-            let report_a = Allocator::new()
-                .allocate(&params, &regions, &mut a)
-                .unwrap();
-            let report_b = Allocator::new()
-                .allocate_with(&params, &regions, &mut b, &Backwards)
-                .unwrap();
-            assert_eq!((report_a, &a), (report_b, &b), "budget {budget}, α {alpha}");
-            assert_eq!(a.len(), regions.len());
-        }
-        // The first invalid region in order is named, wherever the chunks finish.
-        let mut bad = regions.clone();
-        bad[2 * CHUNK + 5].min = bad[2 * CHUNK + 5].max + 1;
-        bad[CHUNK + 9].weight = f32::NAN;
-        let params = AllocationParams::with_budget(1_000);
-        let err = Allocator::new()
-            .allocate_with(&params, &bad, &mut Vec::new(), &Backwards)
-            .unwrap_err();
-        assert!(matches!(err, BudgetError::InvalidWeight { region, .. } if region == CHUNK + 9));
-    }
-
-    #[test]
-    fn the_last_level_steers_the_search_but_not_the_result() {
-        // A view that drifts (the guessed bracket holds the new level), then jumps (it does
-        // not), over several chunks: an allocator that remembers gives what a fresh one does.
-        let base: Vec<RegionInput> = (0..2 * CHUNK + 300)
-            .map(|i| {
-                let min = (i % 7) as u32;
-                let max = min + 20 + (i * 37 % 300) as u32;
-                region(((i * 7919) % 1000) as f32 + 0.5 * (i % 3) as f32, min, max)
-            })
-            .collect();
-        let mut remembering = Allocator::new();
-        let mut hits = 0;
-        for frame in 0..40 {
-            let drift = 1.0 + 0.01 * (frame as f32 * 0.3).sin();
-            let jump = if frame % 13 == 12 { 50.0 } else { 1.0 };
-            let regions: Vec<RegionInput> = base
-                .iter()
-                .enumerate()
-                .map(|(i, r)| RegionInput {
-                    weight: r.weight
-                        * if i % 2 == 0 {
-                            drift * jump
-                        } else {
-                            1.0 / drift
-                        },
-                    ..*r
-                })
-                .collect();
-            let params = AllocationParams::with_budget(150_000);
-            let last = remembering.last_level;
-            let (mut a, mut b) = (Vec::new(), Vec::new());
-            let report_a = remembering.allocate(&params, &regions, &mut a).unwrap();
-            let report_b = Allocator::new()
-                .allocate(&params, &regions, &mut b)
-                .unwrap();
-            assert_eq!((report_a, &a), (report_b, &b), "frame {frame}");
-            // Count the frames whose level fell inside the bracket guessed from the last one.
-            if let (Some(last), Some((now, _))) = (last, remembering.last_level) {
-                let (a, _, b) = guessed_bracket(last);
-                hits += usize::from(a < now && now < b);
-            }
-        }
-        assert!(hits >= 30, "the guess held in only {hits} of 39 frames");
-    }
-
-    #[test]
-    fn a_root_on_a_breakpoint_does_not_depend_on_the_last_level() {
-        // Few distinct weights and maxima, and budgets that put the level exactly on some
-        // region's breakpoint max/s: the search can end with that breakpoint as either end
-        // of its bracket, depending on the path (the guess), and the two pieces' sums round
-        // differently. (Found by review with a differential test.)
-        let mut rng = xorshift(0x1234_5678_9ABC_DEF1);
-        let mut next = move |n: u64| rng() % n;
-        let mut checked = 0;
-        for _ in 0..3000 {
-            let n = 1 + next(6000) as usize;
-            let w = [0.3f32, 0.7, 1.1, 3.3, 0.1][next(5) as usize];
-            let alpha = [1.0f32, 2.0, 3.0, 0.5, f32::INFINITY][next(5) as usize];
-            let regions: Vec<RegionInput> = (0..n)
-                .map(|_| {
-                    let weight = w * (1 + next(3)) as f32;
-                    let max = [7u32, 13, 29, 100_000][next(4) as usize];
-                    region(weight, next(2) as u32, max)
-                })
-                .collect();
-            let share = |r: &RegionInput| {
-                if alpha.is_infinite() {
-                    1.0
-                } else {
-                    f64::from(r.weight).powf(1.0 / f64::from(alpha))
-                }
-            };
-            let j = next(n as u64) as usize;
-            let b = f64::from(regions[j].max) / share(&regions[j]);
-            let g: f64 = regions
-                .iter()
-                .map(|r| (b * share(r)).clamp(f64::from(r.min), f64::from(r.max)))
-                .sum();
-            for budget in [g.round() as u32, g.floor() as u32, g.ceil() as u32 + 1] {
-                if budget == 0 {
-                    continue;
-                }
-                let params = AllocationParams {
-                    budget,
-                    alpha,
-                    ..Default::default()
-                };
-                // Warmed with a nearby budget, so that the call below starts from a guess.
-                let mut warmed = Allocator::new();
-                let nearby = AllocationParams {
-                    budget: budget.saturating_add(budget / 50 + 1),
-                    ..params
-                };
-                warmed.allocate(&nearby, &regions, &mut Vec::new()).unwrap();
-                let (mut a, mut b) = (Vec::new(), Vec::new());
-                let report_a = warmed.allocate(&params, &regions, &mut a).unwrap();
-                let report_b = allocate(&params, &regions, &mut b).unwrap();
-                assert_eq!(
-                    (report_a, &a),
-                    (report_b, &b),
-                    "n {n}, α {alpha}, w {w}, budget {budget}"
-                );
-                checked += 1;
-            }
-        }
-        assert!(checked > 1000);
-    }
-
-    #[test]
-    fn extreme_weights_split_cleanly_for_every_alpha() {
-        // The largest and the smallest (subnormal) f32 weights side by side: shares
-        // unnormalised for α ≥ 1, normalised below it; nothing overflows or turns NaN.
-        let tiny = f32::from_bits(1);
-        let regions = [
-            region(f32::MAX, 0, 1_000),
-            region(1.0, 0, 1_000),
-            region(tiny, 0, 1_000),
-            region(f32::MAX, 0, 1_000),
-        ];
-        for alpha in [0.25, 0.999, 1.0, 1.5, 3.0, 1e30, f32::INFINITY] {
-            let params = AllocationParams {
-                budget: 1_000,
-                alpha,
-                ..Default::default()
-            };
-            let mut out = Vec::new();
-            let report = allocate(&params, &regions, &mut out).unwrap();
-            assert_eq!(report.total, 1_000, "α {alpha}: {out:?}");
-            assert!(out[0] >= out[1] && out[1] >= out[2], "α {alpha}: {out:?}");
-            assert_eq!(out[0], out[3], "α {alpha}: {out:?}");
-        }
-    }
-
-    #[test]
-    fn fast_cube_root_is_exact_to_two_ulp() {
-        let mut worst = 0.0f64;
-        for i in 0..200_000 {
-            // 1 down to 1e-87: every ratio of two f32 weights.
-            let x = (-(i as f64) * 1e-3).exp();
-            let expected = x.cbrt();
-            worst = worst.max((cbrt_normal(x) - expected).abs() / expected);
-        }
-        assert!(worst <= 4.5e-16, "worst relative error {worst:e}");
-        assert_eq!(cbrt_normal(1.0), 1.0);
-        assert_eq!(cbrt_normal(0.125), 0.5);
-    }
-
-    #[test]
-    fn surplus_flows_to_the_others() {
-        // Region 0 wants 900 of 1000 but may only have 100; the rest splits 1:1.
-        let params = AllocationParams {
-            budget: 1000,
-            alpha: 1.0,
-            ..Default::default()
-        };
-        let mut out = Vec::new();
-        let report = allocate(
-            &params,
-            &[
-                region(9.0, 0, 100),
-                region(1.0, 0, 1000),
-                region(1.0, 0, 1000),
-            ],
-            &mut out,
-        )
-        .unwrap();
-        assert_eq!(out, vec![100, 450, 450]);
-        assert_eq!(report.at_max, 1);
-        assert_eq!(report.total, 1000);
-    }
-
-    #[test]
-    fn rounding_uses_largest_remainders() {
-        let params = AllocationParams {
-            budget: 10,
-            alpha: 1.0,
-            ..Default::default()
-        };
-        let mut out = Vec::new();
-        allocate(
-            &params,
-            &[region(1.0, 0, 99), region(1.0, 0, 99), region(1.0, 0, 99)],
-            &mut out,
-        )
-        .unwrap();
-        assert_eq!(out, vec![4, 3, 3]); // ties go to the lower index
-    }
-
-    /// Hysteresis releases the kept regions in the documented order (cost descending, then
-    /// index) through either path: the counting sort for ε ≤ 4096 and the sort above.
-    #[test]
-    fn hysteresis_release_order_is_the_same_on_both_paths() {
-        let mut rng = xorshift(0x2545_f491_4f6c_dd1d);
-        let mut next = move |n: u64| rng() % n;
-        let mut released = 0;
-        for epsilon in [1u32, 3, 8, 100, 4096, 4097, 9000] {
-            for _ in 0..20 {
-                // Some of them over several chunks (the keep pass runs per chunk).
-                let n = if next(4) == 0 {
-                    CHUNK + next(3 * CHUNK as u64) as usize
-                } else {
-                    50 + next(400) as usize
-                };
-                let mut regions: Vec<RegionInput> = (0..n)
-                    .map(|_| region((1 + next(1000)) as f32, next(5) as u32, 20_000))
-                    .collect();
-                let params = AllocationParams {
-                    budget: 100 * n as u32,
-                    alpha: 1.0,
-                    hysteresis: epsilon,
-                    ..Default::default()
-                };
-                let mut targets = Vec::new();
-                let no_hysteresis = AllocationParams {
-                    hysteresis: 0,
-                    ..params
-                };
-                allocate(&no_hysteresis, &regions, &mut targets).unwrap();
-                for (r, &t) in regions.iter_mut().zip(&targets) {
-                    // Mostly above the target, so keeping them overruns the budget.
-                    let d = next(u64::from(epsilon) + 1) as u32;
-                    r.current = if next(4) == 0 {
-                        t.saturating_sub(d)
-                    } else {
-                        t + d
-                    };
-                }
-                // The rule, written out.
-                let mut expected = targets.clone();
-                let mut kept = Vec::new();
-                for (i, (r, p)) in regions.iter().zip(expected.iter_mut()).enumerate() {
-                    let in_bounds = (r.min..=r.max).contains(&r.current);
-                    if in_bounds && r.current != *p && r.current.abs_diff(*p) <= epsilon {
-                        kept.push((i64::from(r.current) - i64::from(*p), i, *p));
-                        *p = r.current;
-                    }
-                }
-                let mut total: u64 = expected.iter().map(|&p| u64::from(p)).sum();
-                kept.sort_by_key(|&(cost, i, _)| (std::cmp::Reverse(cost), i));
-                for (cost, i, target) in kept {
-                    if total <= u64::from(params.available()) || cost <= 0 {
-                        break;
-                    }
-                    total -= cost as u64;
-                    expected[i] = target;
-                    released += 1;
-                }
-                let mut out = Vec::new();
-                allocate(&params, &regions, &mut out).unwrap();
-                assert_eq!(out, expected, "ε = {epsilon}");
-            }
-        }
-        assert!(released > 100, "the cases release kept regions: {released}");
-    }
-
-    #[test]
-    fn hysteresis_releases_the_most_expensive_first() {
-        let params = AllocationParams {
-            budget: 300,
-            alpha: 1.0,
-            hysteresis: 10,
-            ..Default::default()
-        };
-        let regions = [
-            RegionInput {
-                weight: 1.0,
-                min: 0,
-                max: 500,
-                current: 105,
-            },
-            RegionInput {
-                weight: 1.0,
-                min: 0,
-                max: 500,
-                current: 108,
-            },
-            RegionInput {
-                weight: 1.0,
-                min: 0,
-                max: 500,
-                current: 95,
-            },
-        ];
-        let mut out = Vec::new();
-        let report = allocate(&params, &regions, &mut out).unwrap();
-        // Targets 100 each; keeping all would be 308; releasing region 1 (8 over) gives 300.
-        assert_eq!(out, vec![105, 100, 95]);
-        assert_eq!((report.kept, report.released, report.total), (2, 1, 300));
-    }
-}
+mod tests;

@@ -1,5 +1,5 @@
-//! Convex hulls for the OBB fit: a 3D quickhull (Barber, Dobkin & Huhdanpaa 1996) and a 2D
-//! monotone chain (Andrew 1979), both in `f64`.
+//! Convex hulls: a 3D quickhull (Barber, Dobkin & Huhdanpaa 1996) for the OBB fit, and a 2D
+//! monotone chain (Andrew 1979) for the OBB fit and the near-plane clip, both in `f64`.
 //!
 //! The 3D hull only feeds [`fit_obb`](super::fit_obb) with candidate directions (its face
 //! normals), a reduced point set (its vertices) and silhouettes, so it favours never failing
@@ -385,34 +385,85 @@ fn assign(faces: &mut [Face], candidates: std::ops::Range<usize>, i: u32, p: DVe
 
 /// The convex hull of `points`, counter-clockwise, without collinear vertices, into `hull`.
 /// `points` is sorted in place.
+///
+/// `total_cmp` orders −0 before +0, so points with both zeros at the smallest or largest x
+/// reach the chain out of order and one can be left off the hull; the near-plane clip sorts its
+/// points itself, by value.
 pub(super) fn convex_hull_2d(points: &mut [DVec2], hull: &mut Vec<DVec2>) {
-    hull.clear();
     points.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    monotone_chain(points, hull);
+}
+
+/// Where [`monotone_chain`] builds a hull. The OBB fit keeps its hulls in a `Vec` (offline, of
+/// any size); the near-plane clip of [`ProjectedAreaCamera`](super::ProjectedAreaCamera) runs
+/// for every box that straddles the plane, every frame, and keeps its few points in a fixed
+/// array on the stack. So the one hull is generic over where its points go, and neither
+/// allocates per call.
+pub(super) trait PointStack {
+    /// Removes every point.
+    fn clear(&mut self);
+    /// Puts `p` on top.
+    fn push(&mut self, p: DVec2);
+    /// Removes the top point.
+    fn pop(&mut self);
+    /// The points, the top one last.
+    fn as_slice(&self) -> &[DVec2];
+}
+
+impl PointStack for Vec<DVec2> {
+    #[inline]
+    fn clear(&mut self) {
+        Vec::clear(self);
+    }
+
+    #[inline]
+    fn push(&mut self, p: DVec2) {
+        Vec::push(self, p);
+    }
+
+    #[inline]
+    fn pop(&mut self) {
+        Vec::pop(self);
+    }
+
+    #[inline]
+    fn as_slice(&self) -> &[DVec2] {
+        self
+    }
+}
+
+/// The convex hull of `points`, which are sorted by x then y, counter-clockwise, without
+/// collinear vertices, into `hull`: Andrew's monotone chain.
+pub(super) fn monotone_chain<H: PointStack>(points: &[DVec2], hull: &mut H) {
+    hull.clear();
     if points.len() < 3 {
-        hull.extend_from_slice(points);
-        if hull.len() == 2 && hull[0] == hull[1] {
-            hull.pop();
+        for &p in points {
+            hull.push(p);
         }
-        return;
-    }
-    let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
-    // Lower hull, then upper hull.
-    for &p in points.iter() {
-        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
-            hull.pop();
+    } else {
+        let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
+        // Whether the top two points and `p` make no left turn (so the top one goes).
+        let no_left_turn = |hull: &H, p: DVec2| {
+            let h = hull.as_slice();
+            cross(h[h.len() - 2], h[h.len() - 1], p) <= 0.0
+        };
+        // Lower hull, then upper hull.
+        for &p in points {
+            while hull.as_slice().len() >= 2 && no_left_turn(hull, p) {
+                hull.pop();
+            }
+            hull.push(p);
         }
-        hull.push(p);
-    }
-    let lower_len = hull.len() + 1;
-    for &p in points.iter().rev().skip(1) {
-        while hull.len() >= lower_len && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
-        {
-            hull.pop();
+        let lower_len = hull.as_slice().len() + 1;
+        for &p in points.iter().rev().skip(1) {
+            while hull.as_slice().len() >= lower_len && no_left_turn(hull, p) {
+                hull.pop();
+            }
+            hull.push(p);
         }
-        hull.push(p);
+        hull.pop(); // the first point again
     }
-    hull.pop(); // the first point again
-    if hull.len() == 2 && hull[0] == hull[1] {
+    if matches!(hull.as_slice(), [a, b] if a == b) {
         hull.pop();
     }
 }
