@@ -10,12 +10,16 @@ use super::BudgetError;
 /// reproduces Funkhouser & Séquin's benefit heuristic (see [the α table](super#choosing-α)).
 pub const DEFAULT_ALPHA: f32 = 3.0;
 
+/// The budget `P` of [`AllocationParams::default`] and of the plugin's `PolygonBudget`: 100,000
+/// triangles, a frame's worth for a mid-range GPU at 60 Hz with room for the rest of a scene.
+pub const DEFAULT_BUDGET: u32 = 100_000;
+
 /// The global settings of one allocation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AllocationParams {
     /// The total polygon budget `P`, in triangles, for everything in view. Must be positive.
     ///
-    /// Default: `500_000`.
+    /// Default: [`DEFAULT_BUDGET`] (`100_000`).
     pub budget: u32,
     /// Triangles of conventional (non-LOD) meshes that count against the budget:
     /// `P' = budget − fixed_cost`, or `0` when the fixed cost is larger.
@@ -39,7 +43,7 @@ pub struct AllocationParams {
 impl Default for AllocationParams {
     fn default() -> Self {
         Self {
-            budget: 500_000,
+            budget: DEFAULT_BUDGET,
             fixed_cost: 0,
             alpha: DEFAULT_ALPHA,
             hysteresis: 0,

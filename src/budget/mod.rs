@@ -86,8 +86,8 @@ mod obb;
 mod projected_area;
 
 pub use allocate::{
-    AllocationParams, AllocationReport, Allocator, DEFAULT_ALPHA, Executor, RegionInput,
-    Sequential, allocate,
+    AllocationParams, AllocationReport, Allocator, DEFAULT_ALPHA, DEFAULT_BUDGET, Executor,
+    RegionInput, Sequential, allocate,
 };
 pub use error::BudgetError;
 pub use obb::{Obb, fit_aabb, fit_obb, fit_obb_pca};

@@ -65,7 +65,7 @@ pub use render::{RegionUpload, RegionUploadStats};
 pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
 pub use skin::{MultiresSkin, SkinBinding};
 
-use crate::budget::{AllocationParams, DEFAULT_ALPHA, Obb};
+use crate::budget::{AllocationParams, DEFAULT_ALPHA, DEFAULT_BUDGET, Obb};
 use crate::regions::{RegionCaches, RegionMesh};
 use bevy::diagnostic::{Diagnostic, DiagnosticPath, RegisterDiagnostic};
 use bevy::prelude::*;
@@ -229,7 +229,7 @@ pub struct PolygonBudget {
     /// `P`: the most triangles all multiresolution regions and the [`CountInBudget`] meshes
     /// may show together. Must be positive; `0` is warned about and skipped.
     ///
-    /// Default: `100_000`.
+    /// Default: `100_000` ([`DEFAULT_BUDGET`], as the core allocator's).
     pub total: u32,
     /// α: `pᵢ ∝ wᵢ^(1/α)`; `1` proportional to screen area, larger flattens towards an equal
     /// split. Must be positive.
@@ -246,7 +246,7 @@ pub struct PolygonBudget {
 impl Default for PolygonBudget {
     fn default() -> Self {
         Self {
-            total: 100_000,
+            total: DEFAULT_BUDGET,
             alpha: DEFAULT_ALPHA,
             hysteresis: 0,
         }
