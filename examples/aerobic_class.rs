@@ -43,6 +43,7 @@ use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, CountInBudget, FullDetail, MultiresInstance,
     MultiresScene, MultiresSceneModels, PolygonBudget,
 };
+use clap::Parser;
 use common::{FlyCamera, fly_camera};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -53,8 +54,6 @@ const BUDGET: u32 = 5_000;
 const DANCER_HEIGHT: f32 = 1.8;
 /// Metres between neighbouring dancers.
 const SPACING: f32 = 2.0;
-/// Offscreen image size unless `--size` says otherwise.
-const SHOT_SIZE: (u32, u32) = (960, 540);
 /// Frames run before each measured pass, so uploads after a budget switch settle.
 const SETTLE_FRAMES: u32 = 12;
 /// Seconds of dance per scripted frame (120 frames: the mannequin's whole 6 s routine).
@@ -66,13 +65,7 @@ const SCRIPT_SECONDS: f32 = 12.0;
 
 fn main() {
     let raw: Vec<String> = std::env::args().skip(1).collect();
-    let args = match Args::parse(raw.iter().cloned()) {
-        Ok(args) => args,
-        Err(e) => {
-            eprintln!("aerobic_class: {e}\n{USAGE}");
-            std::process::exit(2);
-        }
-    };
+    let args = Args::parse();
     if !args.sizes.is_empty() {
         std::process::exit(match report_per_size(&args, &raw) {
             Ok(()) => 0,
@@ -126,97 +119,43 @@ fn main() {
     app.run();
 }
 
-const USAGE: &str = "usage: aerobic_class [--model PATH] [--clip NAME] [--count N] [--budget P] \
-                     [--headless] [--frames N] [--repeat R] [--report DIR] \
-                     [--size WIDTHxHEIGHT | --sizes WxH,WxH,...]";
-
-/// Command-line options.
-#[derive(Debug)]
+/// ASLOD section 7: three dancing mannequins under one budget of 5,000 triangles.
+#[derive(Parser, Debug)]
 struct Args {
+    /// Render offscreen, no window: play the scripted frames and write the report, then exit.
+    #[arg(long)]
     headless: bool,
+    /// Scripted frames per run (at least 2).
+    #[arg(long, default_value_t = 120, value_parser = clap::value_parser!(u32).range(2..))]
     frames: u32,
+    /// Where the headless run writes its report (default: aerobic-report).
+    #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
+    /// The glTF character.
+    #[arg(long, value_name = "PATH", default_value_os_t = default_model())]
     model: PathBuf,
+    /// The clip to dance (default: the first).
+    #[arg(long, value_name = "NAME")]
     clip: Option<String>,
-    count: usize,
+    /// Dancers: 3 is the class, more a crowd.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    count: u64,
+    /// The polygon budget P.
+    #[arg(long, default_value_t = BUDGET, value_parser = clap::value_parser!(u32).range(1..))]
     budget: u32,
+    /// The offscreen image (WIDTHxHEIGHT).
+    #[arg(long, value_name = "WxH", default_value = "960x540", value_parser = common::parse_size)]
     size: (u32, u32),
     /// Runs with LOD and without, interleaved.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     repeat: u32,
-    /// One report per size (`--sizes`), each by a run of its own.
+    /// One report per size, each by a run of its own, into DIR/WxH.
+    #[arg(long, value_name = "WxH,...", value_delimiter = ',', value_parser = common::parse_size, requires = "headless")]
     sizes: Vec<(u32, u32)>,
 }
 
-impl Args {
-    fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut out = Args {
-            headless: false,
-            frames: 120,
-            report: None,
-            model: Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/mannequin.glb"),
-            clip: None,
-            count: 3,
-            budget: BUDGET,
-            size: SHOT_SIZE,
-            repeat: 1,
-            sizes: Vec::new(),
-        };
-        fn number<T: std::str::FromStr>(flag: &str, value: Option<String>) -> Result<T, String> {
-            let value = value.ok_or(format!("{flag} needs a number"))?;
-            value
-                .parse()
-                .map_err(|_| format!("{flag}: not a number: {value}"))
-        }
-        while let Some(arg) = args.next() {
-            match arg.as_str() {
-                "--headless" => out.headless = true,
-                "--frames" => out.frames = number("--frames", args.next())?,
-                "--count" => out.count = number("--count", args.next())?,
-                "--budget" => out.budget = number("--budget", args.next())?,
-                "--report" => {
-                    out.report = Some(args.next().ok_or("--report needs a folder")?.into())
-                }
-                "--model" => out.model = args.next().ok_or("--model needs a path")?.into(),
-                "--clip" => out.clip = Some(args.next().ok_or("--clip needs a name")?),
-                "--repeat" => out.repeat = number("--repeat", args.next())?,
-                "--size" => {
-                    out.size = parse_size("--size", &args.next().ok_or("--size needs WxH")?)?;
-                }
-                "--sizes" => {
-                    let sizes = args.next().ok_or("--sizes needs WxH,WxH,...")?;
-                    out.sizes = sizes
-                        .split(',')
-                        .map(|s| parse_size("--sizes", s))
-                        .collect::<Result<_, _>>()?;
-                }
-                other => return Err(format!("unknown argument {other}")),
-            }
-        }
-        if out.frames < 2 {
-            return Err(format!("--frames must be at least 2, not {}", out.frames));
-        }
-        if !(1..=10_000).contains(&out.count) {
-            return Err(format!("--count must be 1..=10000, not {}", out.count));
-        }
-        if out.budget == 0 {
-            return Err("--budget must be positive".into());
-        }
-        if !(1..=100).contains(&out.repeat) {
-            return Err(format!("--repeat must be 1..=100, not {}", out.repeat));
-        }
-        if !out.sizes.is_empty() && !out.headless {
-            return Err("--sizes writes reports: it needs --headless".into());
-        }
-        Ok(out)
-    }
-}
-
-/// `WIDTHxHEIGHT`, each side 16..=8192 pixels.
-fn parse_size(flag: &str, size: &str) -> Result<(u32, u32), String> {
-    size.split_once('x')
-        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
-        .filter(|&(w, h)| (16..=8192).contains(&w) && (16..=8192).contains(&h))
-        .ok_or(format!("{flag}: not WIDTHxHEIGHT (16..=8192): {size}"))
+fn default_model() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/mannequin.glb")
 }
 
 /// `--sizes`: runs this example once per size, with the other arguments as given, each into
@@ -346,9 +285,9 @@ impl Class {
             clip_name: args.clip.clone(),
             gltf: Handle::default(),
             clip: None,
-            layout: layout(args.count),
+            layout: layout(args.count as usize),
             dancers: Vec::new(),
-            fixed: vec![0; args.count],
+            fixed: vec![0; args.count as usize],
             placed: false,
             budget: args.budget,
         }

@@ -57,32 +57,31 @@ use std::time::Duration;
 
 const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets");
 
+/// What a level change costs the renderer (a bench), or the render test (`--check`).
+#[derive(clap::Parser, Debug)]
+struct Args {
+    /// Measured frames per row of the bench.
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..))]
+    frames: u32,
+    /// The bench's scene.
+    #[arg(long, default_value = "grid", value_parser = ["grid", "silvretta", "aerobic"])]
+    scene: String,
+    /// The hysteresis ε in triangles.
+    #[arg(long, default_value_t = 0)]
+    hysteresis: u32,
+    /// Run the render test instead, writing its screenshots to DIR.
+    #[arg(long, value_name = "DIR")]
+    check: Option<PathBuf>,
+    /// With `--check`: WebGL 2 limits, so Bevy builds the draws on the CPU.
+    #[arg(long, requires = "check")]
+    cpu_building: bool,
+}
+
 fn main() {
-    let mut frames = 60;
-    let mut scene = "grid".to_string();
-    let mut check = None;
-    let mut cpu_building = false;
-    let mut hysteresis = 0;
-    let mut args = std::env::args().skip(1);
-    while let Some(arg) = args.next() {
-        match arg.as_str() {
-            "--frames" => frames = args.next().and_then(|v| v.parse().ok()).unwrap_or(frames),
-            "--scene" => scene = args.next().unwrap_or(scene),
-            "--check" => check = args.next().map(PathBuf::from),
-            "--cpu-building" => cpu_building = true,
-            "--hysteresis" => {
-                hysteresis = args
-                    .next()
-                    .and_then(|v| v.parse().ok())
-                    .unwrap_or(hysteresis)
-            }
-            // `cargo bench` and `cargo test` pass flags of their own.
-            _ => {}
-        }
-    }
-    let result = match check {
-        Some(dir) => run_check(&dir, cpu_building),
-        None => run_bench(&scene, frames, hysteresis),
+    let args = <Args as clap::Parser>::parse();
+    let result = match args.check {
+        Some(dir) => run_check(&dir, args.cpu_building),
+        None => run_bench(&args.scene, args.frames as usize, args.hysteresis),
     };
     if let Err(e) = result {
         eprintln!("render_cost: {e}");

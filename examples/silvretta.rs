@@ -21,6 +21,7 @@ use bevy_aslod::plugin::{
     MultiresMesh, MultiresModel,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
+use clap::Parser;
 use common::terrain::{HEIGHT, SIDE, SPACING, terrain};
 use common::{FlyCamera, fly_camera};
 use std::path::PathBuf;
@@ -31,15 +32,7 @@ const BUDGET: u32 = 10_000;
 const SHOT_SIZE: (u32, u32) = (960, 540);
 
 fn main() {
-    let args = match Args::parse(std::env::args().skip(1)) {
-        Ok(args) => args,
-        Err(e) => {
-            eprintln!(
-                "silvretta: {e}\nusage: silvretta [--headless] [--frames N] [--screenshot DIR]"
-            );
-            std::process::exit(2);
-        }
-    };
+    let args = Args::parse();
     let mut app = App::new();
     common::add_default_plugins(
         &mut app,
@@ -73,37 +66,18 @@ fn main() {
     app.run();
 }
 
-/// Command-line options.
-#[derive(Debug, Default)]
+/// ASLOD Figure 8: a fractal terrain in 6x6 regions under a 10,000-triangle budget.
+#[derive(Parser, Debug)]
 struct Args {
+    /// Render offscreen, no window: the shots and counts.json, then exit.
+    #[arg(long)]
     headless: bool,
+    /// Frames to wait before each shot.
+    #[arg(long, default_value_t = 30)]
     frames: u32,
+    /// Where the headless run writes (default: silvretta-shots).
+    #[arg(long, value_name = "DIR")]
     screenshot: Option<PathBuf>,
-}
-
-impl Args {
-    fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut out = Args {
-            frames: 30,
-            ..default()
-        };
-        while let Some(arg) = args.next() {
-            match arg.as_str() {
-                "--headless" => out.headless = true,
-                "--frames" => {
-                    let n = args.next().ok_or("--frames needs a number")?;
-                    out.frames = n
-                        .parse()
-                        .map_err(|_| format!("--frames: not a number: {n}"))?;
-                }
-                "--screenshot" => {
-                    out.screenshot = Some(args.next().ok_or("--screenshot needs a folder")?.into());
-                }
-                other => return Err(format!("unknown argument {other}")),
-            }
-        }
-        Ok(out)
-    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -25,6 +25,7 @@ use bevy_aslod::plugin::{
     MultiresScene, MultiresSceneModels, PolygonBudget,
 };
 use bevy_aslod::skin::SkinRegionKind;
+use clap::Parser;
 use common::{FlyCamera, fly_camera};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -39,16 +40,7 @@ const MAX_LOADING: Duration = Duration::from_secs(180);
 const DEFAULT_CLIP: &str = "Dance";
 
 fn main() {
-    let args = match Args::parse(std::env::args().skip(1)) {
-        Ok(args) => args,
-        Err(e) => {
-            eprintln!(
-                "skinned_character: {e}\nusage: skinned_character [--model PATH] [--clip NAME] \
-                 [--budget P] [--headless] [--frames N] [--screenshot DIR]"
-            );
-            std::process::exit(2);
-        }
-    };
+    let args = Args::parse();
     let (asset_root, file) = match common::split_model_path(&args.model) {
         Ok(split) => split,
         Err(e) => {
@@ -116,53 +108,31 @@ fn main() {
     app.run();
 }
 
-/// Command-line options.
-#[derive(Debug)]
+/// A glTF character as a skinned multiresolution model.
+#[derive(Parser, Debug)]
 struct Args {
+    /// Render offscreen, no window: the shots, then exit.
+    #[arg(long)]
     headless: bool,
+    /// Frames to wait before each shot (at least 2).
+    #[arg(long, default_value_t = 30)]
     frames: u32,
+    /// Where the headless run writes (default: character-shots).
+    #[arg(long, value_name = "DIR")]
     screenshot: Option<PathBuf>,
+    /// The glTF character.
+    #[arg(long, value_name = "PATH", default_value_os_t = default_model())]
     model: PathBuf,
+    /// The clip to play (default: `Dance` where the model has it, else the first).
+    #[arg(long, value_name = "NAME")]
     clip: Option<String>,
+    /// The polygon budget P.
+    #[arg(long, default_value_t = BUDGET, value_parser = clap::value_parser!(u32).range(1..))]
     budget: u32,
 }
 
-impl Args {
-    fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut out = Args {
-            headless: false,
-            frames: 30,
-            screenshot: None,
-            model: Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../shared/testdata/characters/RobotExpressive.glb"),
-            clip: None,
-            budget: BUDGET,
-        };
-        while let Some(arg) = args.next() {
-            match arg.as_str() {
-                "--headless" => out.headless = true,
-                "--frames" | "--budget" => {
-                    let n = args.next().ok_or(format!("{arg} needs a number"))?;
-                    let n: u32 = n.parse().map_err(|_| format!("{arg}: not a number: {n}"))?;
-                    if arg == "--frames" {
-                        out.frames = n;
-                    } else {
-                        out.budget = n;
-                    }
-                }
-                "--screenshot" => {
-                    out.screenshot = Some(args.next().ok_or("--screenshot needs a folder")?.into());
-                }
-                "--model" => out.model = args.next().ok_or("--model needs a path")?.into(),
-                "--clip" => out.clip = Some(args.next().ok_or("--clip needs a name")?),
-                other => return Err(format!("unknown argument {other}")),
-            }
-        }
-        if out.budget == 0 {
-            return Err("--budget must be positive".into());
-        }
-        Ok(out)
-    }
+fn default_model() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/testdata/characters/RobotExpressive.glb")
 }
 
 #[derive(Component)]

@@ -49,6 +49,14 @@ pub fn add_default_plugins(app: &mut App, headless: bool, title: &str, asset_roo
     }
 }
 
+/// `WIDTHxHEIGHT`, each side 16..=8192 pixels: a clap value parser for image sizes.
+pub fn parse_size(size: &str) -> Result<(u32, u32), String> {
+    size.split_once('x')
+        .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+        .filter(|&(w, h)| (16..=8192).contains(&w) && (16..=8192).contains(&h))
+        .ok_or(format!("not WIDTHxHEIGHT (16..=8192): {size}"))
+}
+
 /// The asset folder (the model's own) and the file name to load from it.
 pub fn split_model_path(model: &Path) -> Result<(PathBuf, String), String> {
     let model = model
