@@ -25,6 +25,7 @@ pub mod bevy_mesh;
 pub mod budget;
 #[cfg(feature = "distance")]
 pub mod distance;
+pub mod executor;
 #[cfg(feature = "mannequin")]
 pub mod mannequin;
 pub mod mesh;

@@ -5,6 +5,7 @@
 //! `allocate/tests.rs`.
 
 use super::BudgetError;
+pub use crate::executor::{Executor, Sequential};
 
 /// The α of [`AllocationParams::default`]: the paper's choice, with which the allocation
 /// reproduces Funkhouser & Séquin's benefit heuristic (see [the α table](super#choosing-α)).
@@ -98,57 +99,6 @@ impl RegionInput {
             max,
             current,
         }
-    }
-}
-
-/// Runs the allocator's passes over chunks of regions: [`Sequential`] runs them one after
-/// another on the calling thread; an executor that hands them to a thread pool splits the
-/// work ([`Allocator::allocate_with`]; the Bevy plugin uses its compute task pool).
-///
-/// The chunks are the same whoever runs them, and their sums are combined in chunk order,
-/// so the allocation does not depend on the executor or on the number of threads.
-///
-/// ```
-/// use bevy_aslod::budget::{AllocationParams, Allocator, Executor, RegionInput, Sequential};
-///
-/// /// Runs the chunks on scoped threads, two at a time.
-/// struct Threads;
-///
-/// impl Executor for Threads {
-///     fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
-///         std::thread::scope(|scope| {
-///             for pair in items.chunks_mut(2) {
-///                 scope.spawn(move || pair.iter_mut().for_each(f));
-///             }
-///         });
-///     }
-/// }
-///
-/// let regions: Vec<RegionInput> = (0..10_000)
-///     .map(|i| RegionInput::from_area((i % 97) as f32, 1.0, 2, 500, 0))
-///     .collect();
-/// let params = AllocationParams::with_budget(1_000_000);
-/// let (mut on_threads, mut in_order) = (Vec::new(), Vec::new());
-/// Allocator::new().allocate_with(&params, &regions, &mut on_threads, &Threads)?;
-/// Allocator::new().allocate_with(&params, &regions, &mut in_order, &Sequential)?;
-/// assert_eq!(on_threads, in_order);
-/// # Ok::<(), bevy_aslod::budget::BudgetError>(())
-/// ```
-pub trait Executor: Sync {
-    /// Calls `f` once on every item of `items`, in any order and on any threads, and returns
-    /// when every call has returned.
-    fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync));
-}
-
-/// The [`Executor`] that runs every chunk in order on the calling thread
-/// ([`Allocator::allocate`] uses it).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Sequential;
-
-impl Executor for Sequential {
-    #[inline]
-    fn for_each<T: Send>(&self, items: &mut [T], f: &(dyn Fn(&mut T) + Sync)) {
-        items.iter_mut().for_each(f);
     }
 }
 

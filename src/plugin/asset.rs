@@ -1,5 +1,6 @@
 //! The [`MultiresMesh`] asset: a partitioned multiresolution mesh shared by its instances.
 
+use super::tasks::ComputePool;
 use crate::bevy_mesh::from_bevy_mesh;
 use crate::budget::{Obb, fit_aabb};
 use crate::mesh::{IndexedMesh, MeshError};
@@ -119,8 +120,12 @@ impl MultiresMesh {
         partition: &Partition,
         options: &BuildOptions,
     ) -> Result<Self, MultiresError> {
-        Ok(Self::from_regions(RegionMesh::build(
-            mesh, partition, options,
+        // The regions build on Bevy's compute pool, not on threads of their own.
+        Ok(Self::from_regions(RegionMesh::build_with(
+            mesh,
+            partition,
+            options,
+            &ComputePool,
         )?))
     }
 

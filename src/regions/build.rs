@@ -4,12 +4,14 @@ use super::bands::closed_band_cuts;
 use super::borders::{fin_prone, link_border};
 use super::util::{find, subset};
 use super::{FrontEvent, Partition, Region, RegionError, RegionMesh, triangle_owner};
+use crate::executor::{Executor, Threads};
 use crate::mesh::{IndexedMesh, weld_positions};
 use crate::multires::{BuildOptions, build};
 use glam::Vec3;
 
 impl RegionMesh {
-    /// Partitions `mesh` by `partition` and builds every region's sequence.
+    /// Partitions `mesh` by `partition` and builds every region's sequence, on scoped threads
+    /// (one per core; [`Threads`]).
     ///
     /// # Errors
     /// [`RegionError::PartitionMismatch`] when the partition has another vertex count, and
@@ -18,6 +20,21 @@ impl RegionMesh {
         mesh: &IndexedMesh,
         partition: &Partition,
         options: &BuildOptions,
+    ) -> Result<Self, RegionError> {
+        Self::build_with(mesh, partition, options, &Threads)
+    }
+
+    /// [`build`](Self::build) with the regions of each round built by `executor` (an engine's
+    /// thread pool, or [`Sequential`](crate::executor::Sequential)); the result is the same
+    /// whichever runs them.
+    ///
+    /// # Errors
+    /// As [`build`](Self::build).
+    pub fn build_with(
+        mesh: &IndexedMesh,
+        partition: &Partition,
+        options: &BuildOptions,
+        executor: &impl Executor,
     ) -> Result<Self, RegionError> {
         if partition.region_of().len() != mesh.vertex_count() {
             return Err(RegionError::PartitionMismatch {
@@ -71,38 +88,25 @@ impl RegionMesh {
         let mut moves = vec![(u32::MAX, u32::MAX); mesh.vertex_count()];
         for round in 0..rounds {
             let work: Vec<usize> = (0..count).filter(|&r| colour[r] == round).collect();
-            let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-            let chunk = work.len().div_ceil(threads.max(1)).max(1);
             let (mesh, region_of, owned, context, cuts, moves_so_far) =
                 (&mesh, &region_of, &owned, &context, &cuts, &moves);
-            let results: Vec<Result<BuiltRegion, RegionError>> = std::thread::scope(|scope| {
-                let handles: Vec<_> = work
-                    .chunks(chunk)
-                    .map(|regions| {
-                        scope.spawn(move || {
-                            regions
-                                .iter()
-                                .map(|&r| {
-                                    build_region(
-                                        mesh,
-                                        region_of,
-                                        r as u32,
-                                        &owned[r],
-                                        &context[r],
-                                        cuts,
-                                        moves_so_far,
-                                        options,
-                                    )
-                                })
-                                .collect::<Vec<_>>()
-                        })
-                    })
-                    .collect();
-                handles
-                    .into_iter()
-                    .flat_map(|h| h.join().expect("region build does not panic"))
-                    .collect()
+            let mut jobs: Vec<(usize, Option<Result<BuiltRegion, RegionError>>)> =
+                work.iter().map(|&r| (r, None)).collect();
+            executor.for_each(&mut jobs, &|(r, out)| {
+                *out = Some(build_region(
+                    mesh,
+                    region_of,
+                    *r as u32,
+                    &owned[*r],
+                    &context[*r],
+                    cuts,
+                    moves_so_far,
+                    options,
+                ));
             });
+            let results = jobs
+                .into_iter()
+                .map(|(_, built)| built.expect("the executor ran every region"));
             for (&r, result) in work.iter().zip(results) {
                 let (region, region_moves) = result?;
                 for (step, old, new) in region_moves {
