@@ -1,6 +1,5 @@
 //! The [`MultiresMesh`] asset: a partitioned multiresolution mesh shared by its instances.
 
-use super::tasks::ComputePool;
 use crate::bevy_mesh::from_bevy_mesh;
 use crate::budget::{Obb, fit_aabb};
 use crate::mesh::{IndexedMesh, MeshError};
@@ -120,12 +119,10 @@ impl MultiresMesh {
         partition: &Partition,
         options: &BuildOptions,
     ) -> Result<Self, MultiresError> {
-        // The regions build on Bevy's compute pool, not on threads of their own.
-        Ok(Self::from_regions(RegionMesh::build_with(
-            mesh,
-            partition,
-            options,
-            &ComputePool,
+        // Scoped threads of their own: a scope on Bevy's compute pool, opened from the async
+        // compute pool where the plugin builds its assets, never ran (the build hung).
+        Ok(Self::from_regions(RegionMesh::build(
+            mesh, partition, options,
         )?))
     }
 

@@ -13,7 +13,7 @@
 //!   way their own region places them (a rigid vertex by its bone alone), converted into the
 //!   drawing region's space, so both sides of a border put a shared vertex at one position.
 
-use super::tasks::{ComputePool, par_chunks};
+use super::tasks::par_chunks;
 use super::{MultiresError, MultiresMesh};
 use crate::budget::Obb;
 use crate::mesh::{IndexedMesh, weld_positions};
@@ -152,9 +152,7 @@ impl MultiresMesh {
             .into_iter()
             .map(|k| k.unwrap_or(SkinRegionKind::Rigid { bone: 0 }))
             .collect();
-        // The regions build on Bevy's compute pool, not on threads of their own.
-        let regions =
-            RegionMesh::build_with(mesh, &partition, &BuildOptions::default(), &ComputePool)?;
+        let regions = RegionMesh::build(mesh, &partition, &BuildOptions::default())?;
 
         // How each source vertex is placed: by its rigid region's bone, or by all its
         // influences.

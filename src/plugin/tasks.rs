@@ -23,8 +23,8 @@ pub(super) fn par_chunks<T: Send, R: Send + 'static>(
     items.par_chunk_map_mut(pool, size, |_, chunk| f(chunk))
 }
 
-/// The allocator's passes and the region builds' rounds on the compute task pool, with the
-/// calling thread (see [`par_chunks`]).
+/// The allocator's passes on the compute task pool, with the calling thread (see
+/// [`par_chunks`]).
 pub(super) struct ComputePool;
 
 impl Executor for ComputePool {
