@@ -2,7 +2,7 @@
 # Both install what they need first (Debian/Ubuntu packages, as root or through sudo).
 
 APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libudev-dev \
-                libx11-dev mesa-vulkan-drivers xvfb
+                libx11-dev mesa-vulkan-drivers xvfb xauth
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
