@@ -4,11 +4,13 @@
 //! `cargo bench --bench plugin`
 
 mod common;
+#[path = "common/models.rs"]
+mod models;
 #[path = "common/scene.rs"]
 mod scene;
 
 use bevy::prelude::*;
-use bevy_aslod::plugin::{AslodPlugin, AslodStats, AslodViewport, MultiresMesh, MultiresModel};
+use bevy_aslod::plugin::{AslodPlugin, AslodStats, AslodViewport, MultiresMesh};
 use bevy_aslod::regions::{GridPlane, Partition};
 use std::time::Instant;
 
@@ -50,22 +52,12 @@ fn run(hysteresis: u32) {
             .with_hysteresis(hysteresis),
     )
     .insert_resource(AslodViewport(Vec2::new(1920.0, 1080.0)));
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(asset);
-    let material = app
-        .world_mut()
-        .resource_mut::<Assets<StandardMaterial>>()
-        .add(StandardMaterial::default());
     let side = scene::side(MODELS);
-    for i in 0..MODELS {
-        app.world_mut().spawn((
-            MultiresModel(handle.clone()),
-            MeshMaterial3d(material.clone()),
-            Transform::from_translation(scene::model_position(i, side)),
-        ));
-    }
+    models::spawn_models(
+        &mut app,
+        asset,
+        (0..MODELS).map(|i| scene::model_position(i, side)),
+    );
     let camera = app
         .world_mut()
         .spawn((

@@ -622,14 +622,13 @@ fn dancer_triangles(
         .collect()
 }
 
-/// Triangles the dancers would show at full detail in `frustum`: every region whose box (as
-/// the last `Allocate` saw it, moved with its bones) meets the frustum counts all its
-/// triangles, and each dancer's fixed meshes count whole.
+/// Triangles the dancers would show at full detail in `frustum`: every region whose world box
+/// ([`common::region_world_boxes`]) meets the frustum counts all its triangles, and each
+/// dancer's fixed meshes count whole.
 fn full_detail_in_view(
     class: &Class,
     roots: &Query<&MultiresSceneModels, With<Dancer>>,
-    instances: &Query<&MultiresInstance>,
-    region_boxes: &Query<(&Aabb, &GlobalTransform)>,
+    instances: &Query<(&MultiresInstance, &GlobalTransform)>,
     frustum: &Frustum,
 ) -> u64 {
     let meets = |obb: &Obb| {
@@ -650,21 +649,15 @@ fn full_detail_in_view(
         let Ok(models) = roots.get(d) else {
             continue;
         };
-        for instance in models.models().filter_map(|m| instances.get(m).ok()) {
+        for (instance, transform) in models.models().filter_map(|m| instances.get(m).ok()) {
+            let boxes = common::region_world_boxes(instance, transform).unwrap_or_default();
             let regions = instance.regions().regions();
-            for (r, region) in regions.iter().enumerate() {
-                let seen = match instance.skinned_world_boxes() {
-                    Some(boxes) => boxes.get(r).is_some_and(meets),
-                    None => instance.region_entities().get(r).is_some_and(|&e| {
-                        region_boxes.get(e).is_ok_and(|(aabb, transform)| {
-                            frustum.intersects_obb(aabb, &transform.affine(), true, false)
-                        })
-                    }),
-                };
-                if seen {
-                    total += region.max_triangles() as u64;
-                }
-            }
+            total += regions
+                .iter()
+                .zip(&boxes)
+                .filter(|(_, obb)| meets(obb))
+                .map(|(region, _)| region.max_triangles() as u64)
+                .sum::<u64>();
         }
     }
     total
@@ -991,7 +984,7 @@ fn drive_report(
     target: Option<Res<ShotTarget>>,
     roots: Query<&MultiresSceneModels, With<Dancer>>,
     instances: Query<&MultiresInstance>,
-    region_boxes: Query<(&Aabb, &GlobalTransform)>,
+    placed: Query<(&MultiresInstance, &GlobalTransform)>,
     mut camera: Query<(&mut Transform, &Frustum), With<MainCamera>>,
     mut players: Query<(&DancerPlayer, &mut AnimationPlayer)>,
     mut exit: MessageWriter<AppExit>,
@@ -1049,7 +1042,7 @@ fn drive_report(
         } => {
             if frame > 0 {
                 let in_view = camera.single().map_or(0, |(_, frustum)| {
-                    full_detail_in_view(&class, &roots, &instances, &region_boxes, frustum)
+                    full_detail_in_view(&class, &roots, &placed, frustum)
                 });
                 let row = Row {
                     ms: period.unwrap_or(0.0),

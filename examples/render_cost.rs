@@ -21,6 +21,8 @@
 mod clip;
 mod common;
 #[allow(dead_code)]
+#[path = "../benches/common/models.rs"]
+mod models;
 #[path = "../benches/common/scene.rs"]
 mod scene;
 
@@ -404,24 +406,6 @@ fn bench_app(budget: u32, hysteresis: u32, asset_root: Option<&str>) -> (App, En
     (app, camera)
 }
 
-fn add_model(app: &mut App, asset: MultiresMesh, at: &[Vec3]) {
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(asset);
-    let material = app
-        .world_mut()
-        .resource_mut::<Assets<StandardMaterial>>()
-        .add(StandardMaterial::default());
-    for &at in at {
-        app.world_mut().spawn((
-            MultiresModel(handle.clone()),
-            MeshMaterial3d(material.clone()),
-            Transform::from_translation(at),
-        ));
-    }
-}
-
 /// The plugin bench's scene: 1,000 bumpy patches in 4×4 regions under P = 1,000,000, the
 /// camera sweeping along the front of the grid.
 fn grid_scene(hysteresis: u32) -> Bench {
@@ -434,7 +418,7 @@ fn grid_scene(hysteresis: u32) -> Bench {
     let at: Vec<Vec3> = (0..MODELS)
         .map(|i| scene::model_position(i, side))
         .collect();
-    add_model(&mut app, asset, &at);
+    models::spawn_models(&mut app, asset, at);
     Bench {
         app,
         budget: 1_000_000,
@@ -453,7 +437,7 @@ fn silvretta_scene(hysteresis: u32) -> Bench {
     let mesh = terrain::terrain();
     let partition = Partition::grid(&mesh, GridPlane::XZ, 6, 6).expect("grid");
     let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid terrain");
-    add_model(&mut app, asset, &[Vec3::ZERO]);
+    models::spawn_models(&mut app, asset, [Vec3::ZERO]);
     let half = (terrain::SIDE - 1) as f32 * terrain::SPACING * 0.5;
     Bench {
         app,

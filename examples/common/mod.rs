@@ -107,23 +107,7 @@ pub fn scene_bounds(
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
     for model in models.models() {
         let (instance, transform) = instances.get(model).ok()?;
-        let boxes: Vec<Obb> = match instance.skinned_world_boxes() {
-            // Filled by the plugin's first `Allocate` after the model appears.
-            Some([]) => return None,
-            Some(boxes) => boxes.to_vec(),
-            None => {
-                let affine = transform.affine();
-                instance
-                    .regions()
-                    .regions()
-                    .iter()
-                    .map(|r| {
-                        let (a, b) = r.bounds();
-                        Obb::from_aabb(a, b).transformed(&affine)
-                    })
-                    .collect()
-            }
-        };
+        let boxes = region_world_boxes(instance, transform)?;
         for corner in boxes.iter().flat_map(|b| b.corners()) {
             lo = lo.min(corner);
             hi = hi.max(corner);
@@ -139,6 +123,32 @@ pub fn scene_bounds(
     }
     let size = hi - lo;
     (size.is_finite() && size.y > 0.0).then_some((lo, hi))
+}
+
+/// Every region's world box, in region order: moved with its bones for a skinned model
+/// (`None` until the plugin's first `Allocate` after the model appears fills them), else the
+/// region's bounds under the model's transform.
+pub fn region_world_boxes(
+    instance: &MultiresInstance,
+    transform: &GlobalTransform,
+) -> Option<Vec<Obb>> {
+    match instance.skinned_world_boxes() {
+        Some([]) => None,
+        Some(boxes) => Some(boxes.to_vec()),
+        None => {
+            let affine = transform.affine();
+            let regions = instance.regions().regions();
+            Some(
+                regions
+                    .iter()
+                    .map(|r| {
+                        let (a, b) = r.bounds();
+                        Obb::from_aabb(a, b).transformed(&affine)
+                    })
+                    .collect(),
+            )
+        }
+    }
 }
 
 /// A camera the user flies: WASD, Q/E down/up, Shift faster, drag with the left mouse

@@ -118,29 +118,23 @@ impl Data<'_> {
                     "accessors[{a}].sparse.count: {n} exceeds the accessor count {count}"
                 )));
             }
+            // `n` items of `size` bytes from `offset` into a view, or an error naming `what`.
+            let items = |view: gltf::buffer::View<'_>, offset: usize, size: usize, what: &str| {
+                let bytes = self.view_bytes(&view)?;
+                n.checked_mul(size)
+                    .and_then(|len| bytes.get(offset..)?.get(..len))
+                    .ok_or_else(|| {
+                        gltf_error(format!(
+                            "accessors[{a}].sparse.{what}: {n} {what} do not fit in their buffer \
+                             view"
+                        ))
+                    })
+            };
             let indices = sparse.indices();
             let index_size = indices.index_type().size();
-            let index_bytes = self.view_bytes(&indices.view())?;
-            let index_bytes = n
-                .checked_mul(index_size)
-                .and_then(|len| index_bytes.get(indices.offset()..)?.get(..len))
-                .ok_or_else(|| {
-                    gltf_error(format!(
-                        "accessors[{a}].sparse.indices: {n} indices do not fit in their buffer \
-                         view"
-                    ))
-                })?;
+            let index_bytes = items(indices.view(), indices.offset(), index_size, "indices")?;
             let values = sparse.values();
-            let value_bytes = self.view_bytes(&values.view())?;
-            let value_bytes = n
-                .checked_mul(size)
-                .and_then(|len| value_bytes.get(values.offset()..)?.get(..len))
-                .ok_or_else(|| {
-                    gltf_error(format!(
-                        "accessors[{a}].sparse.values: {n} values do not fit in their buffer \
-                         view"
-                    ))
-                })?;
+            let value_bytes = items(values.view(), values.offset(), size, "values")?;
             for (k, raw) in index_bytes.chunks_exact(index_size).enumerate() {
                 let target = match *raw {
                     [b] => usize::from(b),
