@@ -32,6 +32,7 @@ pub mod mesh;
 pub mod multires;
 #[cfg(feature = "bevy")]
 pub mod plugin;
+pub mod refine;
 pub mod regions;
 pub mod skin;
 

@@ -17,6 +17,7 @@
 
 use super::ProgressiveMesh;
 use super::heap::IndexedHeap;
+use super::hierarchy::ViewData;
 use super::quadric::Quadric;
 use super::records::{Layout, Unpacked, error_to_u16};
 use crate::mesh::{IndexedMesh, MeshError, weld_positions};
@@ -85,6 +86,12 @@ pub struct BuildOptions {
     /// (see the README). Values outside `0.0..=1.0` are clamped to that range, non-finite
     /// ones count as `0.0` (with a warning).
     pub weight_exponent: f64,
+    /// Keep the data view-dependent refinement needs (the `refine` module): for every collapse,
+    /// which vertex went onto which, and a bounding sphere, a cone of normals and an error
+    /// bound over everything it and the collapses below it change. About 7 bytes per
+    /// triangle. Only whole meshes keep it ([`ProgressiveMesh::build`]); region builds ignore
+    /// it. Default: `false`.
+    pub view_dependent: bool,
 }
 
 with_setters!(BuildOptions {
@@ -95,6 +102,7 @@ with_setters!(BuildOptions {
     regularization: f64 => with_regularization,
     local_weight: f64 => with_local_weight,
     weight_exponent: f64 => with_weight_exponent,
+    view_dependent: bool => with_view_dependent,
 });
 
 impl Default for BuildOptions {
@@ -107,6 +115,7 @@ impl Default for BuildOptions {
             regularization: 1e-7,
             local_weight: 0.7,
             weight_exponent: 0.25,
+            view_dependent: false,
         }
     }
 }
@@ -143,7 +152,12 @@ struct Collapse {
     removed_count: u8,
     /// Range of `rewrites` this collapse wrote.
     rewrites: std::ops::Range<usize>,
+    /// The error table's entry: the largest collapse error so far.
     error: f32,
+    /// This collapse's own error (relative to the diagonal), before the running maximum.
+    own_error: f32,
+    /// The position ids of the vertex that went and the one it went onto.
+    moved: [u32; 2],
 }
 
 /// One corner rewrite: triangle, corner, old vertex, new vertex.
@@ -1147,6 +1161,9 @@ impl<'a> Builder<'a> {
                 self.adj.push(w, t);
             }
         }
+        if removed_count == 1 && self.rewrites.len() == rewrite_start {
+            self.record_ear_neighbor(removed[0], u, w);
+        }
         let step = self.collapses.len() as u32;
         self.moves
             .extend(map.iter().map(|&(old, new)| (step, old, new)));
@@ -1163,8 +1180,43 @@ impl<'a> Builder<'a> {
             rewrites: rewrite_start..self.rewrites.len(),
             // The table is monotone: a level's error is the largest collapse error so far.
             error: error.max(previous),
+            own_error: error,
+            moved: [u, w],
         });
         self.heap.remove(u);
+    }
+
+    /// An ear collapse (`u`'s only triangle `ear` goes, no corner moves) records an identity
+    /// rewrite of the triangle across the ear's far edge `(w, a)`, on its corner at `w`.
+    ///
+    /// A uniform level never notices (the corner keeps its vertex), but a variable-resolution
+    /// cut does: the rewrite makes that neighbour a triangle the collapse changes, so when the
+    /// collapse is not performed (the ear stays drawn), the neighbour keeps its version and
+    /// every later collapse that would move `w` or `a` under the ear is blocked (MOM's flag
+    /// rule, `refine`). Without it a kept ear would open a crack along `(w, a)`.
+    fn record_ear_neighbor(&mut self, ear: u32, u: u32, w: u32) {
+        let Some(a) = self.tris[ear as usize]
+            .iter()
+            .map(|&v| self.pos[v as usize])
+            .find(|&p| p != u && p != w)
+        else {
+            return;
+        };
+        let neighbor = self.adj[w as usize].iter().copied().find(|&t| {
+            t != ear
+                && self.alive[t as usize]
+                && self.tris[t as usize]
+                    .iter()
+                    .any(|&v| self.pos[v as usize] == a)
+        });
+        if let Some(t) = neighbor
+            && let Some(k) = self.tris[t as usize]
+                .iter()
+                .position(|&v| self.pos[v as usize] == w)
+        {
+            let v = self.tris[t as usize][k];
+            self.rewrites.push((t, k as u8, v, v));
+        }
     }
 
     /// Brings the queued collapse of `x`, a neighbour of `w` after `u` collapsed onto `w`, up
@@ -1391,6 +1443,24 @@ impl<'a> Builder<'a> {
             corners,
             pairs,
         };
+        // Regions keep no view-dependent data: their context triangles are not laid out.
+        let view = (self.options.view_dependent && owned == tri_count).then(|| {
+            let diagonal = self
+                .mesh
+                .bounds()
+                .map_or(0.0, |(lo, hi)| (hi - lo).length());
+            ViewData::compute(
+                &vertices.positions,
+                &records,
+                self.collapses.iter().map(|c| c.moved).collect(),
+                &self
+                    .collapses
+                    .iter()
+                    .map(|c| c.own_error)
+                    .collect::<Vec<_>>(),
+                diagonal,
+            )
+        });
         let records = Layout::new(&records, vertices.vertex_count())?;
         Some(Built {
             mesh: ProgressiveMesh {
@@ -1398,6 +1468,7 @@ impl<'a> Builder<'a> {
                 base_triangles: base_triangles as u32,
                 records,
                 errors,
+                view,
             },
             moves: self.moves,
         })

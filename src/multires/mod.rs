@@ -47,9 +47,10 @@
 pub(crate) mod build;
 mod cache;
 mod heap;
+pub(crate) mod hierarchy;
 mod index;
 mod quadric;
-mod records;
+pub(crate) mod records;
 
 pub use build::BuildOptions;
 pub use cache::PolygonCache;
@@ -74,6 +75,8 @@ pub struct ProgressiveMesh {
     /// `errors[i]`: the geometric error after `i + 1` collapses, relative to the bounding-box
     /// diagonal, rounded up to 16 bits (`records::error_to_u16`); monotone.
     pub(crate) errors: Vec<u16>,
+    /// The view-dependent data ([`BuildOptions::view_dependent`]), for `refine`.
+    pub(crate) view: Option<hierarchy::ViewData>,
 }
 
 impl ProgressiveMesh {
@@ -223,14 +226,25 @@ impl ProgressiveMesh {
         extend(&mut self.vertices.weights, &vertices.weights);
     }
 
-    /// Bytes of the shared data: the vertex table, the index buffer, the records and the
-    /// error table.
+    /// Bytes of the shared data: the vertex table, the index buffer, the records, the error
+    /// table and the view-dependent data when there is some.
     ///
     /// A mesh of at most 65,535 vertices keeps 16-bit indices, 16-bit step headers and
     /// 3-byte corner records; larger ones 32 bits each. Errors take 16 bits.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        indexed_mesh_bytes(&self.vertices) + self.records.bytes() + self.errors.len() * 2
+        indexed_mesh_bytes(&self.vertices)
+            + self.records.bytes()
+            + self.errors.len() * 2
+            + self.view.as_ref().map_or(0, hierarchy::ViewData::bytes)
+    }
+
+    /// Whether the mesh keeps the data view-dependent refinement needs
+    /// ([`BuildOptions::view_dependent`]).
+    #[inline]
+    #[must_use]
+    pub fn has_view_data(&self) -> bool {
+        self.view.is_some()
     }
 }
 

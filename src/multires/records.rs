@@ -95,9 +95,9 @@ impl Corner for u32 {
 }
 
 /// The side of an `[old, new]` pair a coarsening step writes.
-const NEW: usize = 1;
+pub(crate) const NEW: usize = 1;
 /// The side of an `[old, new]` pair a refining step writes.
-const OLD: usize = 0;
+pub(crate) const OLD: usize = 0;
 
 /// The records in one layout: vertices of type `V`, headers `H`, corner records `C`.
 #[derive(Clone, Debug, PartialEq, Eq)]
