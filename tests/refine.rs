@@ -8,8 +8,8 @@ mod common;
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
 use bevy_aslod::refine::{
-    Criteria, Illumination, LevelCut, RefineError, ScreenSpaceError, SphereOfInterest,
-    VariableCache, VariableMesh, View, extract,
+    Criteria, Criterion, Illumination, LevelCut, Node, RefineError, ScreenSpaceError,
+    SphereOfInterest, VariableCache, VariableMesh, View, extract,
 };
 use common::{assert_closed, grid, normal, testdata_mesh, triangle_multiset};
 use glam::Vec3;
@@ -188,6 +188,25 @@ impl CriteriaSpec {
     }
 }
 
+/// A criterion that is not monotone: each collapse is performed or not by a coin with
+/// probability `p`, whatever the view. It drives the dependency rules hardest (a monotone
+/// criterion never asks for a collapse without the ones below it).
+#[derive(Clone, Copy, Debug)]
+struct Coin {
+    seed: u64,
+    p: f64,
+}
+
+impl Criterion for Coin {
+    fn coarsen(&self, node: &Node, _view: &View) -> bool {
+        let mut x = (u64::from(node.step) ^ self.seed).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        x ^= x >> 29;
+        x = x.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        x ^= x >> 32;
+        (x as f64 / u64::MAX as f64) < self.p
+    }
+}
+
 /// Crack-free and fold-free: no directed edge is used twice; a closed mesh stays closed;
 /// no drawn triangle uses a vertex that a performed collapse moved away (a triangle left
 /// behind by a neighbour that moved on is a crack, on open meshes too); and every drawn
@@ -273,6 +292,32 @@ proptest! {
                 "{}: the update differs from a fresh extraction", context
             );
             prop_assert_eq!(stats.triangles, flat.len() / 3);
+        }
+    }
+
+    /// With a criterion that is not monotone (a coin per collapse), every level, fresh or
+    /// updated, is still sound: the dependency rules (MOM's flags per slot, the ear rule)
+    /// keep it crack-free on their own.
+    #[test]
+    fn levels_of_any_criterion_are_sound(
+        which in 0..NAMES.len(),
+        seeds in prop::collection::vec(any::<u64>(), 3),
+        p in 0.05f64..0.95,
+    ) {
+        let s = subject(NAMES[which]);
+        let view = arb_camera_fixed().view(s);
+        let mut cache = VariableCache::new(&s.vm);
+        let mut flat = Vec::new();
+        for (k, &seed) in seeds.iter().enumerate() {
+            let coin = Coin { seed, p };
+            let fresh = extract(&s.vm, &coin, &view, &mut flat).unwrap();
+            let mut again = VariableCache::new(&s.vm);
+            again.extract(&s.vm, &coin, &view).unwrap();
+            assert_sound(s, &again, &format!("{} coin {k}", NAMES[which]));
+            prop_assert_eq!(triangle_multiset(again.indices()), triangle_multiset(&flat));
+            prop_assert!(fresh.performed > 0 || p < 0.2);
+            cache.update(&s.vm, &coin, &view).unwrap();
+            assert_sound(s, &cache, &format!("{} coin update {k}", NAMES[which]));
         }
     }
 
