@@ -4,6 +4,7 @@ use bevy_aslod::distance::{Distance, DistanceOptions, MeshRef, mesh_distance};
 use bevy_aslod::mannequin::{MannequinOptions, generate};
 use bevy_aslod::mesh::{IndexedMesh, write_obj, write_obj_groups};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh, indexed_mesh_bytes};
+use bevy_aslod::refine::{self, Criteria, ScreenSpaceError, VariableMesh, View};
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -23,12 +24,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Write the level with at most N triangles (or the coarsest within an error) as OBJ.
+    /// Write the level with at most N triangles (or the coarsest within an error, or the
+    /// view-dependent level seen from an eye) as OBJ.
+    #[command(group(clap::ArgGroup::new("level").required(true).args(["triangles", "error", "eye"])))]
     Extract {
         /// Input mesh (.obj, .ply, .gltf, .glb).
         input: PathBuf,
         /// Triangle count to reach (at most).
-        #[arg(long, conflicts_with = "error", required_unless_present = "error")]
+        #[arg(long, conflicts_with = "error")]
         triangles: Option<usize>,
         /// Error bound, relative to the bounding-box diagonal.
         #[arg(long)]
@@ -44,6 +47,8 @@ enum Command {
         /// evenly over the regions).
         #[arg(long, value_delimiter = ',', requires = "regions")]
         counts: Option<Vec<usize>>,
+        #[command(flatten)]
+        view: ViewArgs,
     },
     /// Compare our progressive mesh with meshoptimizer: build time and error per ratio.
     Compare(CompareArgs),
@@ -63,6 +68,45 @@ enum Command {
         #[arg(long)]
         cell_size: Option<f32>,
     },
+}
+
+/// The view-dependent mode of `extract` (the `refine` module).
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// View-dependent level seen from this eye, `X,Y,Z` in the mesh's coordinates.
+    #[arg(long, value_delimiter = ',', value_name = "X,Y,Z", allow_hyphen_values = true, conflicts_with_all = ["triangles", "error", "regions"])]
+    eye: Option<Vec<f32>>,
+    /// Where the eye looks: a direction `X,Y,Z` (default: towards the mesh's centre).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "X,Y,Z",
+        allow_negative_numbers = true,
+        requires = "eye"
+    )]
+    look: Option<Vec<f32>>,
+    /// Screen-space error tolerance in pixels (the `screen` criterion).
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        allow_negative_numbers = true,
+        requires = "eye"
+    )]
+    tolerance: f32,
+    /// Vertical field of view in degrees.
+    #[arg(long, default_value_t = 45.0, requires = "eye")]
+    fov: f32,
+    /// Viewport size in pixels, `WxH`.
+    #[arg(long, default_value = "800x600", requires = "eye")]
+    viewport: String,
+    /// The criteria, any of `frustum`, `back-facing`, `screen`, `silhouette`.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "frustum,back-facing,screen",
+        requires = "eye"
+    )]
+    criteria: Vec<String>,
 }
 
 #[derive(clap::Args)]
@@ -100,11 +144,18 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Extract {
             input,
+            output,
+            view: view @ ViewArgs { eye: Some(_), .. },
+            ..
+        } => extract_view(&input, &view, &output),
+        Command::Extract {
+            input,
             triangles,
             output,
             regions: Some(spec),
             error: _,
             counts,
+            ..
         } => extract_regions(&input, &spec, triangles, counts, &output).map(|_| ()),
         Command::Extract {
             input,
@@ -141,6 +192,14 @@ fn load(input: &Path) -> Result<IndexedMesh, Box<dyn std::error::Error>> {
 
 /// Builds with a progress bar when stderr is a terminal.
 fn build(mesh: &IndexedMesh) -> Result<ProgressiveMesh, Box<dyn std::error::Error>> {
+    build_with(mesh, &BuildOptions::default())
+}
+
+/// [`build`] with options.
+fn build_with(
+    mesh: &IndexedMesh,
+    options: &BuildOptions,
+) -> Result<ProgressiveMesh, Box<dyn std::error::Error>> {
     let bar = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(mesh.triangle_count() as u64);
         bar.set_style(
@@ -152,7 +211,7 @@ fn build(mesh: &IndexedMesh) -> Result<ProgressiveMesh, Box<dyn std::error::Erro
     } else {
         None
     };
-    let pm = ProgressiveMesh::build_with(mesh, &BuildOptions::default(), None, &mut |done, _| {
+    let pm = ProgressiveMesh::build_with(mesh, options, None, &mut |done, _| {
         if let Some(bar) = &bar {
             bar.set_position(done as u64);
         }
@@ -181,6 +240,69 @@ fn extract(input: &Path, triangles: Option<usize>, error: Option<f32>, output: &
         reached,
         cache.level(),
         pm.level_error(cache.level()),
+        output.display()
+    );
+    Ok(())
+}
+
+/// Writes the view-dependent level seen from `--eye` (frustum, back faces and screen-space
+/// error by default).
+fn extract_view(input: &Path, args: &ViewArgs, output: &Path) -> CliResult {
+    let mesh = load(input)?;
+    let (lo, hi) = mesh.bounds().ok_or("the mesh is empty")?;
+    let vector = |name: &str, v: &[f32]| match v {
+        &[x, y, z] => Ok(Vec3::new(x, y, z)),
+        _ => Err(format!("--{name} takes three numbers, X,Y,Z")),
+    };
+    let eye = vector("eye", args.eye.as_deref().unwrap_or_default())?;
+    let look = match args.look.as_deref() {
+        Some(look) => vector("look", look)?,
+        None => (lo + hi) * 0.5 - eye,
+    };
+    let (width, height) = args
+        .viewport
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<f32>().ok()?, h.parse::<f32>().ok()?)))
+        .ok_or_else(|| format!("bad --viewport {:?}: expected WxH", args.viewport))?;
+    let up = if look.cross(Vec3::Y).length() > 1e-3 * look.length() {
+        Vec3::Y
+    } else {
+        Vec3::Z
+    };
+    let view = View::perspective(
+        eye,
+        look,
+        up,
+        args.fov.to_radians(),
+        width / height,
+        1e-4 * (hi - lo).length(),
+        height,
+    )?;
+    let mut criteria = Criteria::default();
+    for c in &args.criteria {
+        criteria = match c.as_str() {
+            "frustum" => criteria.with_frustum(true),
+            "back-facing" => criteria.with_back_facing(true),
+            "screen" => criteria.with_screen_space(Some(ScreenSpaceError::new(args.tolerance)?)),
+            "silhouette" => criteria.with_silhouette(true),
+            other => return Err(format!("unknown criterion {other:?}").into()),
+        };
+    }
+    let pm = build_with(&mesh, &BuildOptions::default().with_view_dependent(true))?;
+    let vm = VariableMesh::new(pm)?;
+    let mut indices = Vec::new();
+    let start = Instant::now();
+    let stats = refine::extract(&vm, &criteria, &view, &mut indices)?;
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    let mut out = vm.mesh().vertices().clone();
+    out.indices = indices;
+    let file = std::fs::File::create(output)?;
+    write_obj(&out, &mut BufWriter::new(file))?;
+    eprintln!(
+        "wrote {} of {} triangles ({} collapses performed, extracted in {ms:.2} ms) to {}",
+        stats.triangles,
+        vm.mesh().max_triangles(),
+        stats.performed,
         output.display()
     );
     Ok(())
@@ -728,8 +850,74 @@ fn compare(args: &CompareArgs) -> CliResult {
 
 #[cfg(test)]
 mod tests {
-    use super::pinched_edges;
+    use super::{Cli, Command, extract_view, pinched_edges};
+    use bevy_aslod::mesh::IndexedMesh;
+    use clap::Parser;
     use glam::Vec3;
+
+    /// `aslod extract --eye` writes a view-dependent level: fewer triangles than the mesh,
+    /// more with a smaller tolerance, and bad values are errors that name them.
+    #[test]
+    fn extract_with_an_eye_writes_a_view_dependent_level() {
+        let cow = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shared/testdata/meshes/cow.obj"
+        );
+        let dir = std::env::temp_dir().join(format!("aslod-extract-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut counts = Vec::new();
+        for tolerance in ["4", "0.5"] {
+            let out = dir.join(format!("cow_{tolerance}.obj"));
+            let cli = Cli::parse_from([
+                "aslod",
+                "extract",
+                cow,
+                "--eye",
+                "-0.4,0.3,1.6",
+                "--tolerance",
+                tolerance,
+                "-o",
+                out.to_str().unwrap(),
+            ]);
+            let Command::Extract { view, .. } = cli.command else {
+                panic!("parsed as extract");
+            };
+            extract_view(cow.as_ref(), &view, &out).unwrap();
+            counts.push(IndexedMesh::load(&out).unwrap().0.triangle_count());
+        }
+        assert!(counts[0] < counts[1] && counts[1] < 5804, "{counts:?}");
+        let cli = Cli::parse_from([
+            "aslod",
+            "extract",
+            cow,
+            "--eye",
+            "0,0,1",
+            "--fov",
+            "0",
+            "-o",
+            "unused.obj",
+        ]);
+        let Command::Extract { view, .. } = cli.command else {
+            panic!("parsed as extract");
+        };
+        let error = extract_view(cow.as_ref(), &view, "unused.obj".as_ref()).unwrap_err();
+        assert!(error.to_string().contains("field of view"), "{error}");
+        assert!(
+            Cli::try_parse_from([
+                "aslod",
+                "extract",
+                cow,
+                "--eye",
+                "0,0,1",
+                "--triangles",
+                "5",
+                "-o",
+                "x.obj"
+            ])
+            .is_err()
+        );
+        std::fs::remove_dir_all(&dir).ok();
+    }
 
     #[test]
     fn pinched_edges_counts_edges_of_more_than_two_triangles() {
