@@ -679,3 +679,4 @@ fn hot_reloading_the_asset_rebuilds_the_regions() {
         "old region meshes freed"
     );
 }
+// touch
