@@ -39,9 +39,14 @@ silvretta: deps
 		cat out/silvretta/counts.json; \
 	fi
 
+# Three passes, so that Bevy is compiled, and linked into a binary, only where a test needs it:
+# everything without Bevy (the core, the CLI, the core benches run once each); the two Bevy
+# test binaries (the plugin headless, and the render tests, which build and run the examples)
+# and the Bevy benches, built only; then the doctests.
 test: deps check-deps
-	$(CARGO) test --no-default-features --features mannequin,distance --lib --tests
-	$(CARGO) test --all-features --all-targets
+	$(CARGO) test --no-default-features --features cli --lib --bins --tests --benches
+	$(CARGO) test --all-features --lib --test plugin --test render
+	$(CARGO) test --all-features --no-run --bench plugin --bench skinned_crowd
 	$(CARGO) test --all-features --doc
 
 # What `cargo add bevy_aslod` pulls: Bevy, glam, gltf, thiserror and log (and bytemuck, which

@@ -29,13 +29,11 @@
 
 mod common;
 
-use bevy::asset::RenderAssetUsages;
 use bevy::camera::RenderTarget;
 use bevy::camera::primitives::{Aabb, Frustum};
 use bevy::gltf::Gltf;
 use bevy::math::{Affine3A, Vec3A};
 use bevy::prelude::*;
-use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::budget::Obb;
@@ -44,6 +42,7 @@ use bevy_aslod::plugin::{
     MultiresScene, MultiresSceneModels, PolygonBudget,
 };
 use clap::Parser;
+use common::stats::{CpuTimes, per_frame_medians, series_stats};
 use common::{FlyCamera, fly_camera};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -893,60 +892,6 @@ struct Report {
     cpu: [CpuTimes; 2],
 }
 
-/// The whole machine's CPU time in clock ticks, from the first line of Linux's `/proc/stat`:
-/// all of it, idle, and stolen by the hypervisor (a virtual machine's host running something
-/// else). Zero where there is no `/proc/stat`.
-#[derive(Clone, Copy, Debug, Default)]
-struct CpuTimes {
-    total: u64,
-    idle: u64,
-    steal: u64,
-}
-
-impl CpuTimes {
-    fn now() -> Self {
-        let Ok(stat) = std::fs::read_to_string("/proc/stat") else {
-            return Self::default();
-        };
-        // cpu user nice system idle iowait irq softirq steal guest guest_nice
-        let ticks: Vec<u64> = stat
-            .lines()
-            .next()
-            .unwrap_or("")
-            .split_whitespace()
-            .skip(1)
-            .filter_map(|t| t.parse().ok())
-            .collect();
-        let at = |i: usize| ticks.get(i).copied().unwrap_or(0);
-        Self {
-            // guest time is counted in user time already.
-            total: ticks.iter().take(8).sum(),
-            idle: at(3) + at(4),
-            steal: at(7),
-        }
-    }
-
-    fn since(self, start: Self) -> Self {
-        Self {
-            total: self.total.saturating_sub(start.total),
-            idle: self.idle.saturating_sub(start.idle),
-            steal: self.steal.saturating_sub(start.steal),
-        }
-    }
-
-    fn add(&mut self, other: Self) {
-        self.total += other.total;
-        self.idle += other.idle;
-        self.steal += other.steal;
-    }
-
-    /// Idle and stolen shares of the time (NaN without `/proc/stat`).
-    fn shares(self) -> (f64, f64) {
-        let total = self.total as f64;
-        (self.idle as f64 / total, self.steal as f64 / total)
-    }
-}
-
 impl Report {
     fn new(dir: PathBuf, frames: u32, repeat: u32, size: (u32, u32)) -> Self {
         Self {
@@ -1210,119 +1155,11 @@ fn on_captured(captured: On<ScreenshotCaptured>, mut report: ResMut<Report>) {
     }
 }
 
-/// The median of `values` (NaN when empty).
-fn median(values: &[f64]) -> f64 {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => (v[n / 2 - 1] + v[n / 2]) * 0.5,
-    }
-}
-
-/// Mean and coefficient of variation (population standard deviation over the mean).
-fn mean_cv(values: &[f64]) -> (f64, f64) {
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-    (
-        mean,
-        if mean > 0.0 {
-            variance.sqrt() / mean
-        } else {
-            f64::NAN
-        },
-    )
-}
-
-/// Pearson's correlation of two equally long series (NaN when either is constant).
-fn correlation(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len().min(y.len()) as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
-    for (a, b) in x.iter().zip(y) {
-        sxy += (a - mx) * (b - my);
-        sxx += (a - mx).powi(2);
-        syy += (b - my).powi(2);
-    }
-    sxy / (sxx * syy).sqrt()
-}
-
-/// Each frame's median time over the runs.
-fn per_frame_medians(runs: &[Vec<Row>], frames: usize) -> Vec<f64> {
-    (0..frames)
-        .map(|f| median(&runs.iter().map(|run| run[f].ms).collect::<Vec<_>>()))
+/// Each run's frame times.
+fn times(runs: &[Vec<Row>]) -> Vec<Vec<f64>> {
+    runs.iter()
+        .map(|run| run.iter().map(|r| r.ms).collect())
         .collect()
-}
-
-/// One series' frame times over its runs (each `frames` long):
-/// - `median_ms`, `p95_ms` (nearest rank), `mean_ms` and `cv` of the per-frame medians: the
-///   systematic part, what the scripted frames themselves cost;
-/// - `cv_all_frames`: the CV of every frame of every run, noise included;
-/// - `run_to_run_ms`: the median absolute difference between two runs of the same frame (every
-///   pair of runs; null with one run), and `frame_to_frame_ms`, between neighbouring frames of
-///   a run: the noise;
-/// - `cv_noise` and `cv_systematic`: how much of `cv` the noise explains and what is left,
-///   estimated (null with one run): noise of standard deviation σ (from `run_to_run_ms`,
-///   which is 0.954σ for normal noise) moves a median of R runs by about σ/√R for R ≤ 2 and
-///   σ·√(π/2R) above, and the two variances add;
-/// - `in_view_correlation`: Pearson's correlation of the per-frame medians with the
-///   full-detail triangles in view.
-///
-/// `write_report` adds `cpu_idle` and `cpu_steal`: the machine's idle share and the share its
-/// hypervisor stole during the series' frames (`/proc/stat`; null without it).
-fn frame_stats(runs: &[Vec<Row>], frames: usize, in_view: &[f64]) -> serde_json::Value {
-    if runs.is_empty() || frames == 0 {
-        return serde_json::Value::Null;
-    }
-    let medians = per_frame_medians(runs, frames);
-    let mut sorted = medians.clone();
-    sorted.sort_by(f64::total_cmp);
-    let p95 = sorted[((0.95 * frames as f64).ceil() as usize).clamp(1, frames) - 1];
-    let (mean, cv) = mean_cv(&medians);
-    let every: Vec<f64> = runs
-        .iter()
-        .flat_map(|r| r[..frames].iter().map(|r| r.ms))
-        .collect();
-    let mut pairs = Vec::new();
-    for f in 0..frames {
-        for (i, a) in runs.iter().enumerate() {
-            for b in &runs[i + 1..] {
-                pairs.push((a[f].ms - b[f].ms).abs());
-            }
-        }
-    }
-    let run_to_run = median(&pairs);
-    let r = runs.len() as f64;
-    let spread = if runs.len() <= 2 {
-        1.0 / r.sqrt()
-    } else {
-        (std::f64::consts::PI / (2.0 * r)).sqrt()
-    };
-    let cv_noise = spread * run_to_run / 0.954 / mean;
-    let steps: Vec<f64> = runs
-        .iter()
-        .flat_map(|r| r[..frames].windows(2).map(|w| (w[1].ms - w[0].ms).abs()))
-        .collect();
-    serde_json::json!({
-        "runs": runs.len(),
-        "median_ms": median(&medians),
-        "p95_ms": p95,
-        "mean_ms": mean,
-        "cv": cv,
-        "cv_all_frames": mean_cv(&every).1,
-        "cv_noise": cv_noise,
-        // NaN (null) with one run, like the noise.
-        "cv_systematic": if cv_noise.is_nan() {
-            f64::NAN
-        } else {
-            (cv * cv - cv_noise * cv_noise).max(0.0).sqrt()
-        },
-        "run_to_run_ms": run_to_run,
-        "frame_to_frame_ms": median(&steps),
-        "in_view_correlation": correlation(&medians, in_view),
-    })
 }
 
 fn write_report(report: &Report, class: &Class) -> Result<(), String> {
@@ -1410,8 +1247,8 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
         })
         .collect();
     let in_view: Vec<f64> = no_lod.iter().map(|r| r.in_view as f64).collect();
-    let mut with = frame_stats(&report.lod[..runs], frames, &in_view);
-    let mut without = frame_stats(&report.no_lod[..runs], frames, &in_view);
+    let mut with = series_stats(&times(&report.lod[..runs]), frames, &in_view);
+    let mut without = series_stats(&times(&report.no_lod[..runs]), frames, &in_view);
     for (series, cpu) in [(&mut with, report.cpu[0]), (&mut without, report.cpu[1])] {
         let (idle, steal) = cpu.shares();
         series["cpu_idle"] = idle.into();
@@ -1456,12 +1293,12 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
         &report.dir.join("frame_time.png"),
         &charts::Series {
             runs: &report.lod[..runs],
-            medians: per_frame_medians(&report.lod[..runs], frames),
+            medians: per_frame_medians(&times(&report.lod[..runs]), frames),
             label: format!("with LOD (P = {} triangles)", class.budget),
         },
         &charts::Series {
             runs: &report.no_lod[..runs],
-            medians: per_frame_medians(&report.no_lod[..runs], frames),
+            medians: per_frame_medians(&times(&report.no_lod[..runs]), frames),
             label: format!(
                 "no LOD ({} triangles)",
                 no_lod.iter().map(|r| r.total).max().unwrap_or(0)
@@ -1475,67 +1312,10 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
 
 /// The report's charts, drawn with `plotters` into an RGB buffer and saved as PNG.
 mod charts {
-    use super::{Extent3d, Image, RenderAssetUsages, Row, TextureDimension, TextureFormat};
+    use super::Row;
+    use crate::common::chart::draw;
     use plotters::prelude::*;
     use std::path::Path;
-    use std::sync::Once;
-
-    const SIZE: (u32, u32) = (960, 540);
-
-    /// Plotters draws text with a font it is given: Bevy's built-in one.
-    fn register_font() {
-        static ONCE: Once = Once::new();
-        ONCE.call_once(|| {
-            if plotters::style::register_font(
-                "sans-serif",
-                FontStyle::Normal,
-                bevy::text::DEFAULT_FONT_DATA,
-            )
-            .is_err()
-            {
-                bevy::log::warn!("the chart font did not load; charts have no text");
-            }
-        });
-    }
-
-    fn save(path: &Path, rgb: &[u8]) -> Result<(), String> {
-        let rgba: Vec<u8> = rgb
-            .chunks_exact(3)
-            .flat_map(|p| [p[0], p[1], p[2], 255])
-            .collect();
-        let image = Image::new(
-            Extent3d {
-                width: SIZE.0,
-                height: SIZE.1,
-                depth_or_array_layers: 1,
-            },
-            TextureDimension::D2,
-            rgba,
-            TextureFormat::Rgba8UnormSrgb,
-            RenderAssetUsages::default(),
-        );
-        image
-            .try_into_dynamic()
-            .map_err(|e| e.to_string())?
-            .to_rgb8()
-            .save(path)
-            .map_err(|e| format!("{}: {e}", path.display()))
-    }
-
-    fn draw(
-        path: &Path,
-        body: impl FnOnce(&DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
-    ) -> Result<(), String> {
-        register_font();
-        let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-        {
-            let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
-            root.fill(&WHITE).map_err(|e| e.to_string())?;
-            body(&root)?;
-            root.present().map_err(|e| e.to_string())?;
-        }
-        save(path, &rgb)
-    }
 
     /// One series of the frame-time chart: its runs and each frame's median over them.
     pub struct Series<'a> {

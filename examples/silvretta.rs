@@ -22,6 +22,7 @@ use bevy_aslod::plugin::{
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use clap::Parser;
+use common::stats::median_p95;
 use common::terrain::{HEIGHT, SIDE, SPACING, terrain};
 use common::{FlyCamera, fly_camera};
 use std::path::PathBuf;
@@ -529,18 +530,6 @@ fn time_frames(shots: &mut Shots, full_detail: &mut FullDetail, stats: &AslodSta
     }
     full_detail.0 = false;
     true
-}
-
-fn median_p95(values: &[f64]) -> serde_json::Value {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return serde_json::Value::Null;
-    }
-    serde_json::json!({
-        "median_ms": v[v.len() / 2],
-        "p95_ms": v[((v.len() as f64 * 0.95) as usize).min(v.len() - 1)],
-    })
 }
 
 /// Writes `counts.json`: per-view counts and the frame-time comparison.

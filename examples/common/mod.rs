@@ -1,7 +1,9 @@
 //! Pieces the examples share: the app's plugins with or without a window, a fly camera,
-//! loading a glTF character's clip, and offscreen screenshots.
+//! loading a glTF character's clip, offscreen screenshots, and frame-time statistics.
 #![allow(dead_code)]
 
+pub mod chart;
+pub mod stats;
 pub mod terrain;
 
 use bevy::app::ScheduleRunnerPlugin;

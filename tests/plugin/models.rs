@@ -1,5 +1,4 @@
 //! The Bevy plugin without a GPU: region children, budget split, despawn, run-time changes.
-#![cfg(feature = "bevy")]
 
 use bevy::diagnostic::DiagnosticsStore;
 use bevy::prelude::*;
@@ -13,7 +12,7 @@ use glam::Vec3;
 
 /// The benches' scene: its bumpy 16×16 patch is the terrain here.
 #[allow(dead_code)]
-#[path = "../benches/common/scene.rs"]
+#[path = "../../benches/common/scene.rs"]
 mod scene;
 
 use scene::patch as terrain;
@@ -679,4 +678,3 @@ fn hot_reloading_the_asset_rebuilds_the_regions() {
         "old region meshes freed"
     );
 }
-// touch

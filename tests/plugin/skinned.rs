@@ -2,7 +2,6 @@
 //! backend): RobotExpressive from the shared test data, loaded by Bevy's own glTF loader and
 //! animated by its `AnimationPlayer`, checked against a reference linear blend skinning
 //! computed here from the glTF's inverse bind matrices and the joints' global transforms.
-#![cfg(feature = "bevy")]
 
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::gltf::Gltf;
