@@ -328,14 +328,6 @@ fn no_triangle_faces_away_from_its_full_detail_side() {
     }
 }
 
-/// Cases per property: `PROPTEST_CASES` when set (for long runs), else `default`.
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(cases(48)))]
 

@@ -11,7 +11,7 @@ use bevy_aslod::refine::{
     Criteria, Criterion, Illumination, LevelCut, Node, RefineError, ScreenSpaceError,
     SphereOfInterest, VariableCache, VariableMesh, View, extract,
 };
-use common::{assert_closed, grid, normal, testdata_mesh, triangle_multiset};
+use common::{assert_closed, config, grid, normal, testdata_mesh, triangle_multiset};
 use glam::Vec3;
 use proptest::prelude::*;
 use std::collections::HashMap;
@@ -244,16 +244,8 @@ fn assert_sound(s: &Subject, cache: &VariableCache, context: &str) {
     }
 }
 
-/// Cases per property: `PROPTEST_CASES` when set (for long runs), else `default`.
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(cases(160)))]
+    #![proptest_config(config(160))]
 
     /// A fresh extraction is sound, and the cache and the free function agree; then along a
     /// few frames of a smooth motion and a jump to a random camera, every incremental update

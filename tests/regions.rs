@@ -225,26 +225,9 @@ fn arb_partition(mesh: &IndexedMesh, choice: u8, n: usize, seed: u64) -> Partiti
     }
 }
 
-/// Cases per property: `PROPTEST_CASES` when set (for long runs), else `default`.
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-/// A fixed seed unless `PROPTEST_RNG_SEED` is set, so that CI does not depend on luck. Long
-/// runs: `PROPTEST_CASES=20000 PROPTEST_RNG_SEED=1` (and other seeds); the folds they used to
-/// find are the regression tests `fold_across_two_stretches_of_a_front` and
-/// `fold_in_a_band_that_closes_on_itself`.
-fn config(default_cases: u32) -> ProptestConfig {
-    let mut config = ProptestConfig::with_cases(cases(default_cases));
-    if std::env::var("PROPTEST_RNG_SEED").is_err() {
-        config.rng_seed = proptest::test_runner::RngSeed::Fixed(0x5eed_a51d);
-    }
-    config
-}
-
+// Long runs: `PROPTEST_CASES=20000 PROPTEST_RNG_SEED=1` (and other seeds); the folds they
+// used to find are the regression tests `fold_across_two_stretches_of_a_front` and
+// `fold_in_a_band_that_closes_on_itself`.
 proptest! {
     #![proptest_config(config(40))]
 

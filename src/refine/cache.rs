@@ -336,8 +336,8 @@ impl<I: CacheIndex> VariableCache<I> {
         side: usize,
     ) {
         let (nc, np, _) = records.steps[step].unpack();
-        let corner = mesh.corner_start[step] as usize;
-        let pair = mesh.pair_start[step] as usize;
+        let corner = mesh.graph.corner_start[step] as usize;
+        let pair = mesh.graph.pair_start[step] as usize;
         let pairs = &records.pairs[pair..pair + np];
         for c in &records.corners[corner..corner + nc] {
             let c = c.get();
@@ -378,7 +378,7 @@ impl<I: CacheIndex> VariableCache<I> {
 #[inline]
 fn removed_slots(mesh: &VariableMesh, step: usize) -> (usize, usize) {
     let removed = mesh.mesh.records.removed_by(step);
-    (mesh.first_removed[step] as usize, removed)
+    (mesh.graph.first_removed[step] as usize, removed)
 }
 
 /// `slots` set to the full-detail index buffer.

@@ -68,6 +68,12 @@ pub struct RefineStats {
 /// per slot. An ear collapse, which changes no corner, records an identity rewrite of its
 /// neighbour (see the builder), so skipping it freezes what it leans on.
 ///
+/// MOM evaluates its criterion only for the simplifications that hold a face of the
+/// full-detail mesh, which saves work for a criterion that either keeps full detail or drops
+/// everything (its sphere of interest) but would perform every coarser collapse unasked; a
+/// screen-space tolerance has to judge every collapse, so here every collapse whose slots are
+/// free is evaluated.
+///
 /// `slots` starts as the full-detail index buffer and ends with every slot's last version;
 /// `frozen` starts clear. Returns the criterion evaluations and the collapses performed.
 pub(crate) fn first_stage<V, H, C, I, K>(

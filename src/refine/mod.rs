@@ -101,17 +101,7 @@ pub(crate) use with_records;
 pub struct VariableMesh {
     mesh: ProgressiveMesh,
     nodes: Vec<Node>,
-    /// Per collapse: its first removed slot, and its first corner and pair record.
-    first_removed: Vec<u32>,
-    corner_start: Vec<u32>,
-    pair_start: Vec<u32>,
-    /// Per collapse, the collapses it depends on (`deps[deps_start[i]..deps_start[i + 1]]`):
-    /// for every slot it removes or changes, the last earlier collapse that touched it.
-    deps_start: Vec<u32>,
-    deps: Vec<u32>,
-    /// The same edges the other way: the collapses that depend on each.
-    children_start: Vec<u32>,
-    children: Vec<u32>,
+    graph: Graph,
 }
 
 impl VariableMesh {
@@ -143,17 +133,7 @@ impl VariableMesh {
             })
             .collect();
         let graph = with_records!(&mesh.records, r => Graph::new(r));
-        Ok(Self {
-            nodes,
-            first_removed: graph.first_removed,
-            corner_start: graph.corner_start,
-            pair_start: graph.pair_start,
-            deps_start: graph.deps_start,
-            deps: graph.deps,
-            children_start: graph.children_start,
-            children: graph.children,
-            mesh,
-        })
+        Ok(Self { nodes, graph, mesh })
     }
 
     /// The progressive mesh.
@@ -197,35 +177,43 @@ impl VariableMesh {
     #[inline]
     #[must_use]
     pub fn dependencies(&self, step: usize) -> &[u32] {
-        &self.deps[self.deps_start[step] as usize..self.deps_start[step + 1] as usize]
+        let g = &self.graph;
+        &g.deps[g.deps_start[step] as usize..g.deps_start[step + 1] as usize]
     }
 
     #[inline]
     fn dependents(&self, step: usize) -> &[u32] {
-        &self.children[self.children_start[step] as usize..self.children_start[step + 1] as usize]
+        let g = &self.graph;
+        &g.children[g.children_start[step] as usize..g.children_start[step + 1] as usize]
     }
 
     /// Bytes of the refinement data beyond the progressive mesh (see the type's docs).
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
+        let g = &self.graph;
         self.nodes.len() * size_of::<Node>()
-            + 4 * (self.first_removed.len()
-                + self.corner_start.len()
-                + self.pair_start.len()
-                + self.deps_start.len()
-                + self.deps.len()
-                + self.children_start.len()
-                + self.children.len())
+            + 4 * (g.first_removed.len()
+                + g.corner_start.len()
+                + g.pair_start.len()
+                + g.deps_start.len()
+                + g.deps.len()
+                + g.children_start.len()
+                + g.children.len())
     }
 }
 
 /// The per-collapse offsets and the dependency graph, from one replay of the records.
+#[derive(Clone, Debug)]
 struct Graph {
+    /// Per collapse: its first removed slot, and its first corner and pair record.
     first_removed: Vec<u32>,
     corner_start: Vec<u32>,
     pair_start: Vec<u32>,
+    /// Per collapse, the collapses it depends on (`deps[deps_start[i]..deps_start[i + 1]]`):
+    /// for every slot it removes or changes, the last earlier collapse that touched it.
     deps_start: Vec<u32>,
     deps: Vec<u32>,
+    /// The same edges the other way: the collapses that depend on each.
     children_start: Vec<u32>,
     children: Vec<u32>,
 }

@@ -6,6 +6,24 @@ use glam::{Vec2, Vec3};
 use proptest::prelude::*;
 use std::collections::HashMap;
 
+/// Cases per property: `PROPTEST_CASES` when set (for long runs), else `default`.
+pub fn cases(default: u32) -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// [`cases`], with a fixed seed unless `PROPTEST_RNG_SEED` is set, so that CI does not depend
+/// on luck; long runs set both (`PROPTEST_CASES=20000 PROPTEST_RNG_SEED=1`, and other seeds).
+pub fn config(default_cases: u32) -> ProptestConfig {
+    let mut config = ProptestConfig::with_cases(cases(default_cases));
+    if std::env::var("PROPTEST_RNG_SEED").is_err() {
+        config.rng_seed = proptest::test_runner::RngSeed::Fixed(0x5eed_a51d);
+    }
+    config
+}
+
 /// A mesh of `../shared/testdata/meshes`, read in place.
 pub fn testdata_mesh(name: &str) -> IndexedMesh {
     let path = format!(
