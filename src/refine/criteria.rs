@@ -1,29 +1,4 @@
-//! What decides whether a collapse is performed: one small type per criterion, behind one
-//! trait.
-//!
-//! A criterion answers one question per collapse: may it be performed, because nothing it
-//! looks at needs the detail the collapse removes? Each built-in answers from the collapse's
-//! [`Node`] (a sphere, a cone of normals and an error bounding the collapse and every
-//! collapse below it) and the [`View`]:
-//!
-//! | criterion | performs a collapse when | units |
-//! |---|---|---|
-//! | [`Frustum`] | its sphere lies wholly outside the view frustum (Hoppe, Güdükbay) | — |
-//! | [`BackFacing`] | every normal of its cone faces away from the eye from every point of its sphere (Hoppe's surface orientation) | — |
-//! | [`ScreenSpaceError`] | its error, seen from the nearest point of its sphere, covers fewer than τ pixels | pixels |
-//! | [`SphereOfInterest`] | its sphere does not meet a sphere of interest (MOM's experiment) | the mesh's units |
-//! | [`Silhouette`] | it is wholly front-facing or wholly back-facing, so not on the silhouette (MOM) | — |
-//! | [`Illumination`] | every normal of its cone faces away from a directional light: unlit (MOM) | — |
-//! | [`LevelCut`] | it comes before a given level: a uniform level, for comparisons | collapses |
-//!
-//! Criteria combine by [`Criteria`] (the built-ins, each on or off) or by tuples: a collapse
-//! is performed when **any** criterion allows it, so every criterion is a reason to drop
-//! detail and one with nothing to say keeps it (with no criterion at all, nothing
-//! collapses). Each built-in is monotone: when it allows a collapse it allows every collapse
-//! below it, whose bounds lie inside. The incremental extraction relies on that to match a
-//! fresh one; a custom criterion that is not monotone still gives a crack-free mesh, but
-//! [`VariableCache::update`](super::VariableCache::update) may then keep detail a fresh
-//! extraction would drop.
+//! What decides whether a collapse is performed: the [`Criterion`] trait and the built-ins.
 
 use super::{RefineError, View};
 use glam::{DVec3, Vec3};
@@ -68,8 +43,31 @@ impl Node {
     }
 }
 
-/// Decides, collapse by collapse, whether a variable-resolution level performs it. See the
-/// [module documentation](self) for the built-ins and how they combine.
+/// Decides, collapse by collapse, whether a variable-resolution level performs it.
+///
+/// A criterion answers one question per collapse: may it be performed, because nothing it
+/// looks at needs the detail the collapse removes? Each built-in answers from the collapse's
+/// [`Node`] (a sphere, a cone of normals and an error bounding the collapse and every
+/// collapse below it) and the [`View`]:
+///
+/// | criterion | performs a collapse when | units |
+/// |---|---|---|
+/// | [`Frustum`] | its sphere lies wholly outside the view frustum (Hoppe, Güdükbay) | — |
+/// | [`BackFacing`] | every normal of its cone faces away from the eye from every point of its sphere (Hoppe's surface orientation) | — |
+/// | [`ScreenSpaceError`] | its error, seen from the nearest point of its sphere, covers fewer than τ pixels | pixels |
+/// | [`SphereOfInterest`] | its sphere does not meet a sphere of interest (MOM's experiment) | the mesh's units |
+/// | [`Silhouette`] | it is wholly front-facing or wholly back-facing, so not on the silhouette (MOM) | — |
+/// | [`Illumination`] | every normal of its cone faces away from a directional light: unlit (MOM) | — |
+/// | [`LevelCut`] | it comes before a given level: a uniform level, for comparisons | collapses |
+///
+/// Criteria combine by [`Criteria`] (the built-ins, each on or off) or by tuples: a collapse
+/// is performed when **any** criterion allows it, so every criterion is a reason to drop
+/// detail and one with nothing to say keeps it (with no criterion at all, nothing
+/// collapses). Each built-in is monotone: when it allows a collapse it allows every collapse
+/// below it, whose bounds lie inside. The incremental extraction relies on that to match a
+/// fresh one; a custom criterion that is not monotone still gives a crack-free mesh, but
+/// [`VariableCache::update`](super::VariableCache::update) may then keep detail a fresh
+/// extraction would drop.
 pub trait Criterion {
     /// True when the collapse `node` may be performed (its detail is not needed), seen from
     /// `view`.
