@@ -381,3 +381,77 @@ proptest! {
         }
     }
 }
+
+/// `n × n` small closed spheres (36 triangles each) in a square, `gap` apart: a mesh of many
+/// disconnected parts.
+fn many_parts(n: u32, gap: f32) -> IndexedMesh {
+    let part = sphere(4, 6, &[0.0], false);
+    let mut mesh = IndexedMesh::new(Vec::new(), Vec::new());
+    for i in 0..n * n {
+        let offset = Vec3::new((i % n) as f32, 0.0, (i / n) as f32) * (2.0 + gap);
+        let base = mesh.positions.len() as u32;
+        mesh.positions
+            .extend(part.positions.iter().map(|&p| p + offset));
+        mesh.indices.extend(part.indices.iter().map(|&v| v + base));
+    }
+    mesh
+}
+
+/// Güdükbay et al.'s topology compromise on 100 separate spheres: edge collapses stop at a
+/// tetrahedron per sphere (11 % of the triangles), pair collapses merge neighbouring spheres
+/// and let parts vanish, down past 2 %; every level stays closed (each edge once each way),
+/// and the errors at 10 % and 2 % are printed against the edge-only sequence's coarsest
+/// level (`cargo test --features distance --test multires topology -- --nocapture`).
+#[test]
+fn topology_compromise_goes_where_edge_collapses_cannot() {
+    let mesh = many_parts(10, 0.2);
+    let full = mesh.triangle_count();
+    let edges = ProgressiveMesh::build(&mesh, &BuildOptions::default()).unwrap();
+    assert_eq!(
+        edges.min_triangles(),
+        4 * 100,
+        "edge collapses stop at tetrahedra"
+    );
+    let options = BuildOptions::default().with_pair_distance(0.02);
+    let pairs = ProgressiveMesh::build(&mesh, &options).unwrap();
+    assert!(
+        pairs.min_triangles() <= full / 50,
+        "pair collapses reach {} of {full}",
+        pairs.min_triangles()
+    );
+    let mut cache = PolygonCache::new(&pairs);
+    while cache.coarsen(&pairs) {
+        assert_closed(&mesh.positions, cache.indices(), "pair-collapse level");
+    }
+    let distance = |pm: &ProgressiveMesh, target: usize| {
+        let mut cache = PolygonCache::new(pm);
+        let reached = cache.set_triangle_count(pm, target);
+        let d = mesh_distance(
+            MeshRef::new(&mesh.positions, &mesh.indices),
+            MeshRef::new(&pm.vertices().positions, cache.indices()),
+            &DistanceOptions::default().with_samples(50_000),
+        );
+        (reached, d.hausdorff, d.rms)
+    };
+    println!("| sequence | target | triangles | Hausdorff | RMS |");
+    println!("|---|---:|---:|---:|---:|");
+    let coarsest = distance(&edges, 0);
+    println!(
+        "| edge collapses | coarsest | {} | {:.4} | {:.4} |",
+        coarsest.0, coarsest.1, coarsest.2
+    );
+    for ratio in [0.1, 0.02] {
+        let target = (ratio * full as f64) as usize;
+        let (reached, hausdorff, rms) = distance(&pairs, target);
+        println!("| pair collapses | {ratio} | {reached} | {hausdorff:.4} | {rms:.4} |");
+        assert!(reached <= target);
+        assert!(hausdorff.is_finite() && rms.is_finite());
+    }
+    // At the edge sequence's own coarsest count the pairs do no worse.
+    let same = distance(&pairs, coarsest.0);
+    println!(
+        "| pair collapses | {} triangles | {} | {:.4} | {:.4} |",
+        coarsest.0, same.0, same.1, same.2
+    );
+    assert!(same.1 <= coarsest.1 * 1.5, "{same:?} against {coarsest:?}");
+}

@@ -92,6 +92,17 @@ pub struct BuildOptions {
     /// triangle. Only whole meshes keep it ([`ProgressiveMesh::build`]); region builds ignore
     /// it. Default: `false`.
     pub view_dependent: bool,
+    /// Güdükbay et al.'s topology compromise: also collapse a vertex onto one of another
+    /// connected part that is closer than this distance (relative to the bounding-box
+    /// diagonal) without an edge between them, so nearby parts merge, and let a closed part
+    /// that has come down to a tetrahedron fold flat and vanish. Coarse levels of meshes
+    /// made of many small parts then go far below what edge collapses alone reach (each
+    /// closed part stops at a tetrahedron). A merged vertex joins two fans, and a vanishing
+    /// part folds flat before it goes (its last two triangles face each other), so such levels
+    /// are not manifold everywhere; vertices with attribute seams never pair. Whole meshes
+    /// only ([`ProgressiveMesh::build`]). `0.0` turns it off; negative or non-finite values
+    /// count as `0.0` (with a warning). Default: `0.0`.
+    pub pair_distance: f32,
 }
 
 with_setters!(BuildOptions {
@@ -103,6 +114,7 @@ with_setters!(BuildOptions {
     local_weight: f64 => with_local_weight,
     weight_exponent: f64 => with_weight_exponent,
     view_dependent: bool => with_view_dependent,
+    pair_distance: f32 => with_pair_distance,
 });
 
 impl Default for BuildOptions {
@@ -116,6 +128,7 @@ impl Default for BuildOptions {
             local_weight: 0.7,
             weight_exponent: 0.25,
             view_dependent: false,
+            pair_distance: 0.0,
         }
     }
 }
@@ -145,6 +158,9 @@ enum EdgeClass {
     Border,
     Seam,
 }
+
+/// The most pair candidates (the topology compromise) a position keeps, nearest first.
+const MAX_PAIRS: usize = 8;
 
 /// One performed collapse, before the final layout.
 struct Collapse {
@@ -220,6 +236,9 @@ struct Builder<'a> {
     band: Vec<Vec<(u32, DVec3)>>,
     /// Scratch: the triangles around the vertex being collapsed.
     adj_u: Vec<u32>,
+    /// Per position, the positions of other connected parts closer than
+    /// [`BuildOptions::pair_distance`] (the topology compromise); empty when it is off.
+    pairs: Vec<Vec<u32>>,
 }
 
 /// Per position, its live triangles: every list in one arena, in position order (so the
@@ -420,8 +439,13 @@ impl<'a> Builder<'a> {
             moved_ring: Vec::new(),
             band: Vec::new(),
             adj_u: Vec::new(),
+            pairs: Vec::new(),
         };
         builder.classify(pinned);
+        let distance = f64::from(options.pair_distance);
+        if distance > 0.0 && distance.is_finite() && pinned.is_none() {
+            builder.find_pairs(distance * diagonal);
+        }
         // Fronts run along the anchors: the vertices given, or else every pinned one.
         if let Some(anchors) = anchors.or(pinned)
             && anchors.contains(&true)
@@ -434,6 +458,67 @@ impl<'a> Builder<'a> {
             }
         }
         builder
+    }
+
+    /// The topology compromise's candidates: for every position, those of other connected
+    /// parts within `distance` (nearest first, at most [`MAX_PAIRS`]), found in a hash grid of
+    /// cell `distance`.
+    fn find_pairs(&mut self, distance: f64) {
+        let n = self.points.len();
+        // Connected parts, by union-find over the triangles' positions.
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn root(parent: &mut [u32], mut x: u32) -> u32 {
+            while parent[x as usize] != x {
+                parent[x as usize] = parent[parent[x as usize] as usize];
+                x = parent[x as usize];
+            }
+            x
+        }
+        for tri in &self.tris {
+            let p = tri.map(|v| self.pos[v as usize]);
+            for k in 1..3 {
+                let (a, b) = (root(&mut parent, p[0]), root(&mut parent, p[k]));
+                parent[a as usize] = b;
+            }
+        }
+        let cell = |p: DVec3| (p / distance).floor().as_i64vec3();
+        let mut grid: std::collections::HashMap<glam::I64Vec3, Vec<u32>> =
+            std::collections::HashMap::new();
+        for p in 0..n as u32 {
+            if self.pos[p as usize] == p && !self.adj[p as usize].is_empty() {
+                grid.entry(cell(self.points[p as usize]))
+                    .or_default()
+                    .push(p);
+            }
+        }
+        self.pairs = vec![Vec::new(); n];
+        let mut near: Vec<(f64, u32)> = Vec::new();
+        for p in 0..n as u32 {
+            if self.pos[p as usize] != p || self.adj[p as usize].is_empty() {
+                continue;
+            }
+            let at = self.points[p as usize];
+            let c = cell(at);
+            let part = root(&mut parent, p);
+            near.clear();
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let Some(list) = grid.get(&(c + glam::I64Vec3::new(dx, dy, dz))) else {
+                            continue;
+                        };
+                        for &q in list {
+                            let d = self.points[q as usize].distance(at);
+                            if d <= distance && root(&mut parent, q) != part {
+                                near.push((d, q));
+                            }
+                        }
+                    }
+                }
+            }
+            near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            self.pairs[p as usize].extend(near.iter().take(MAX_PAIRS).map(|&(_, q)| q));
+        }
     }
 
     /// Phase 2: manifold, border, complex or pinned, per position.
@@ -793,11 +878,24 @@ impl<'a> Builder<'a> {
                 None => map.push((a, b)),
             }
         }
-        if edge_tris == 0 || edge_tris > 2 {
+        if edge_tris == 0 {
+            return self.check_pair(u, w, scratch);
+        }
+        if edge_tris > 2 {
             return false;
         }
-        // Never erase a whole component: w must keep at least one triangle.
-        if self.adj[u as usize].len() + self.adj[w as usize].len() == 2 * edge_tris {
+        // Never erase a whole component (w must keep at least one triangle)...
+        let last = self.adj[u as usize].len() + self.adj[w as usize].len() == 2 * edge_tris;
+        // ...unless the topology compromise lets a part vanish: u's only two triangles are a
+        // tetrahedron folded flat, the same three positions facing each other.
+        let flat = !self.pairs.is_empty()
+            && self.adj[u as usize].len() == 2
+            && edge_tris == 2
+            && apexes[0] == apexes[1];
+        if flat {
+            return true;
+        }
+        if last {
             return false;
         }
         // A vertex on an attribute seam (or at the end of one) moves only along the seam;
@@ -844,7 +942,10 @@ impl<'a> Builder<'a> {
                     has(a) && has(b)
                 });
             if duplicate {
-                return false;
+                // A closed tetrahedron (u in three triangles, all of it) may fold flat on its
+                // way out (topology compromise): its other two triangles come onto the same
+                // positions facing each other, every edge still used once each way.
+                return !self.pairs.is_empty() && self.adj[u as usize].len() == 3;
             }
             // No flip: the moved triangle must keep facing the same way.
             let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
@@ -856,6 +957,58 @@ impl<'a> Builder<'a> {
                 return false;
             }
         }
+        true
+    }
+
+    /// The rules for collapsing `u` onto `w` of another part, with no edge between them (the
+    /// topology compromise): `w` is one of `u`'s pair candidates, neither has an attribute
+    /// seam (one attribute vertex each, mapped onto each other), they share no neighbour (the
+    /// fans would share an edge), and no moved triangle turns over.
+    fn check_pair(&self, u: u32, w: u32, scratch: &mut Scratch) -> bool {
+        if !self.pairs.get(u as usize).is_some_and(|p| p.contains(&w)) {
+            return false;
+        }
+        let wedge = |p: u32| -> Option<u32> {
+            let mut one = None;
+            for &t in &self.adj[p as usize] {
+                for &v in &self.tris[t as usize] {
+                    if self.pos[v as usize] == p {
+                        match one {
+                            None => one = Some(v),
+                            Some(o) if o != v => return None,
+                            Some(_) => {}
+                        }
+                    }
+                }
+            }
+            one
+        };
+        let (Some(a), Some(b)) = (wedge(u), wedge(w)) else {
+            return false;
+        };
+        let stamp = scratch.next_stamp();
+        for &t in &self.adj[w as usize] {
+            for &v in &self.tris[t as usize] {
+                scratch.mark[self.pos[v as usize] as usize] = stamp;
+            }
+        }
+        let (pu, pw) = (self.points[u as usize], self.points[w as usize]);
+        for &t in &self.adj[u as usize] {
+            let tri = self.tris[t as usize];
+            if tri
+                .iter()
+                .any(|&v| scratch.mark[self.pos[v as usize] as usize] == stamp)
+            {
+                return false;
+            }
+            let (_, a, b) = others(tri, &self.pos, u).expect("adjacency is consistent");
+            let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
+            if self.turns(pu, pw, pa, pb) || self.faces_away(t, pw, pa, pb) {
+                return false;
+            }
+        }
+        scratch.map.clear();
+        scratch.map.push((a, b));
         true
     }
 
@@ -974,6 +1127,16 @@ impl<'a> Builder<'a> {
             }
             if let Some(e) = self.quadric_cost(u, w) {
                 candidates.push((e, w));
+            }
+        }
+        if let Some(pairs) = self.pairs.get(u as usize) {
+            for &w in pairs {
+                if !self.adj[w as usize].is_empty()
+                    && !nu.contains(&w)
+                    && let Some(e) = self.quadric_cost(u, w)
+                {
+                    candidates.push((e, w));
+                }
             }
         }
         // The cheapest quadric error first. The local error only adds, so a candidate whose
@@ -1161,9 +1324,7 @@ impl<'a> Builder<'a> {
                 self.adj.push(w, t);
             }
         }
-        if removed_count == 1 && self.rewrites.len() == rewrite_start {
-            self.record_ear_neighbor(removed[0], u, w);
-        }
+        self.pin_survivors(&removed[..removed_count as usize], u, rewrite_start);
         let step = self.collapses.len() as u32;
         self.moves
             .extend(map.iter().map(|&(old, new)| (step, old, new)));
@@ -1186,36 +1347,67 @@ impl<'a> Builder<'a> {
         self.heap.remove(u);
     }
 
-    /// An ear collapse (`u`'s only triangle `ear` goes, no corner moves) records an identity
-    /// rewrite of the triangle across the ear's far edge `(w, a)`, on its corner at `w`.
+    /// Records an identity rewrite (a corner keeps its vertex) on a surviving triangle of every
+    /// vertex of the removed triangles that no moved corner of this collapse leaves in a
+    /// changed triangle: the far corners of an ear (a border vertex's only triangle, which
+    /// moves no corner) or of a part that vanishes (the topology compromise).
     ///
-    /// A uniform level never notices (the corner keeps its vertex), but a variable-resolution
-    /// cut does: the rewrite makes that neighbour a triangle the collapse changes, so when the
-    /// collapse is not performed (the ear stays drawn), the neighbour keeps its version and
-    /// every later collapse that would move `w` or `a` under the ear is blocked (MOM's flag
-    /// rule, `refine`). Without it a kept ear would open a crack along `(w, a)`.
-    fn record_ear_neighbor(&mut self, ear: u32, u: u32, w: u32) {
-        let Some(a) = self.tris[ear as usize]
-            .iter()
-            .map(|&v| self.pos[v as usize])
-            .find(|&p| p != u && p != w)
-        else {
-            return;
-        };
-        let neighbor = self.adj[w as usize].iter().copied().find(|&t| {
-            t != ear
-                && self.alive[t as usize]
-                && self.tris[t as usize]
+    /// A uniform level never notices, but a variable-resolution cut does: the rewrite makes
+    /// that triangle one the collapse changes, so when the collapse is not performed (its
+    /// removed triangles stay drawn), the triangle keeps its version, and every later collapse
+    /// that would move the vertex from under the kept triangles is blocked (MOM's flag rule,
+    /// `refine`). Without it a kept ear would open a crack along its far edge. An ordinary
+    /// collapse needs none: the triangles across its removed ones are changed and hold every
+    /// such vertex.
+    fn pin_survivors(&mut self, removed: &[u32], u: u32, rewrite_start: usize) {
+        let mut loose: Vec<u32> = Vec::new();
+        for &t in removed {
+            for &v in &self.tris[t as usize] {
+                let p = self.pos[v as usize];
+                // Pinned and complex vertices never move: nothing to keep them from.
+                let held = p == u
+                    || !matches!(self.kind[p as usize], Kind::Manifold | Kind::Border)
+                    || loose.contains(&p)
+                    || self.rewrites[rewrite_start..].iter().any(|&(s, ..)| {
+                        self.tris[s as usize]
+                            .iter()
+                            .any(|&x| self.pos[x as usize] == p)
+                    });
+                if !held {
+                    loose.push(p);
+                }
+            }
+        }
+        while let Some(&p) = loose.first() {
+            // A live triangle of p, one that also holds the other loose vertices if there is
+            // one (an ear's neighbour across its far edge holds both).
+            let holds = |t: u32| {
+                loose
                     .iter()
-                    .any(|&v| self.pos[v as usize] == a)
-        });
-        if let Some(t) = neighbor
-            && let Some(k) = self.tris[t as usize]
+                    .filter(|&&q| {
+                        self.tris[t as usize]
+                            .iter()
+                            .any(|&x| self.pos[x as usize] == q)
+                    })
+                    .count()
+            };
+            let Some(t) = self.adj[p as usize]
                 .iter()
-                .position(|&v| self.pos[v as usize] == w)
-        {
+                .copied()
+                .filter(|&t| self.alive[t as usize])
+                .max_by_key(|&t| (holds(t), std::cmp::Reverse(t)))
+            else {
+                loose.remove(0);
+                continue;
+            };
+            let k = self.tris[t as usize]
+                .iter()
+                .position(|&x| self.pos[x as usize] == p)
+                .expect("adjacency is consistent");
             let v = self.tris[t as usize][k];
             self.rewrites.push((t, k as u8, v, v));
+            let tri = self.tris[t as usize];
+            loose.retain(|&q| !tri.iter().any(|&x| self.pos[x as usize] == q));
         }
     }
 
@@ -1555,6 +1747,10 @@ pub(crate) fn build(
         if non_negative(value) != value {
             log::warn!("BuildOptions::{name} = {value} is negative or not finite: 0 is used");
         }
+    }
+    let pairs = options.pair_distance;
+    if !(pairs.is_finite() && pairs >= 0.0) {
+        log::warn!("BuildOptions::pair_distance = {pairs} is negative or not finite: 0 is used");
     }
     let exponent = options.weight_exponent;
     if unit_interval(exponent) != exponent {
