@@ -105,11 +105,11 @@ impl<I: CacheIndex> VariableCache<I> {
         self.out_slot.len()
     }
 
-    /// Whether collapse `step` is performed in the current level.
+    /// Whether collapse `step` is performed in the current level (false past the last one).
     #[inline]
     #[must_use]
     pub fn is_performed(&self, step: usize) -> bool {
-        self.performed.get(step)
+        step < self.collapses && self.performed.get(step)
     }
 
     /// True when the index buffer changed since the last

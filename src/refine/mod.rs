@@ -173,12 +173,15 @@ impl VariableMesh {
     }
 
     /// The collapses `step` depends on: for every triangle it removes or changes, the last
-    /// earlier collapse that touched it.
+    /// earlier collapse that touched it (empty past the last collapse).
     #[inline]
     #[must_use]
     pub fn dependencies(&self, step: usize) -> &[u32] {
         let g = &self.graph;
-        &g.deps[g.deps_start[step] as usize..g.deps_start[step + 1] as usize]
+        match (g.deps_start.get(step), g.deps_start.get(step + 1)) {
+            (Some(&from), Some(&to)) => &g.deps[from as usize..to as usize],
+            _ => &[],
+        }
     }
 
     #[inline]
