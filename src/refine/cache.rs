@@ -42,6 +42,8 @@ pub struct VariableCache<I: CacheIndex = u32> {
     in_front: Bits,
     /// Scratch of a fresh extraction (a bit per slot).
     frozen: Bits,
+    /// Collapses of the mesh the cache was made for.
+    collapses: usize,
     changed: bool,
 }
 
@@ -75,6 +77,7 @@ impl<I: CacheIndex> VariableCache<I> {
             front: Vec::new(),
             in_front: Bits::new(steps),
             frozen: Bits::default(),
+            collapses: steps,
             changed: true,
         };
         cache.rebuild_front(mesh);
@@ -257,9 +260,7 @@ impl<I: CacheIndex> VariableCache<I> {
 
     fn check(&self, mesh: &VariableMesh) -> Result<(), RefineError> {
         let slots = mesh.mesh.max_triangles();
-        if self.out_pos.len() != slots
-            || self.in_front.bytes() != Bits::new(mesh.collapse_count()).bytes()
-        {
+        if self.out_pos.len() != slots || self.collapses != mesh.collapse_count() {
             return Err(RefineError::MeshMismatch {
                 cache: self.out_pos.len(),
                 mesh: slots,
