@@ -81,7 +81,7 @@ struct ViewArgs {
         long,
         value_delimiter = ',',
         value_name = "X,Y,Z",
-        allow_negative_numbers = true,
+        allow_hyphen_values = true,
         requires = "eye"
     )]
     look: Option<Vec<f32>>,
@@ -874,6 +874,8 @@ mod tests {
                 cow,
                 "--eye",
                 "-0.4,0.3,1.6",
+                "--look",
+                "0.4,-0.3,-1.6",
                 "--tolerance",
                 tolerance,
                 "-o",
