@@ -9,7 +9,7 @@ use bevy_aslod::mesh::{IndexedMesh, weld_positions};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
 use bevy_aslod::refine::{
     Criteria, Criterion, Illumination, LevelCut, Node, RefineError, ScreenSpaceError,
-    SphereOfInterest, VariableCache, VariableMesh, View, extract,
+    SphereOfInterest, ToleranceSearch, VariableCache, VariableMesh, View, extract,
 };
 use common::{assert_closed, config, grid, normal, testdata_mesh, triangle_multiset};
 use glam::Vec3;
@@ -361,6 +361,66 @@ proptest! {
         let mut cache = VariableCache::new(&s.vm);
         cache.update(&s.vm, &LevelCut(level), &view).unwrap();
         prop_assert_eq!(triangle_multiset(cache.indices()), triangle_multiset(uniform.indices()));
+    }
+}
+
+proptest! {
+    #![proptest_config(config(64))]
+
+    /// A budget search along a camera path with a jump and a changing budget: every level
+    /// is within its budget (or the coarsest one), is the level a fresh extraction gives at
+    /// the tolerance it reports, and, when the search converged, half that tolerance would
+    /// not have fitted (so it is not far from the most detail within the budget).
+    #[test]
+    fn a_budget_search_fits_the_budget_with_the_most_detail(
+        which in 0..NAMES.len(),
+        camera in arb_camera(),
+        jump in arb_camera(),
+        spec in arb_criteria(),
+        budgets in prop::collection::vec(0.0f64..1.0, 5),
+        floor in prop::option::of(0.0f32..4.0),
+    ) {
+        let s = subject(NAMES[which]);
+        let criteria = spec.criteria(s).with_screen_space(None);
+        let pm = s.vm.mesh();
+        let (min, max) = (pm.min_triangles(), pm.max_triangles());
+        let mut cache = VariableCache::new(&s.vm);
+        let mut search = ToleranceSearch::default();
+        let mut flat = Vec::new();
+        let views = [camera.view(s), camera.nudged(1.0).view(s), jump.view(s),
+            jump.nudged(1.0).view(s), jump.nudged(2.0).view(s)];
+        for (k, (view, &b)) in views.iter().zip(&budgets).enumerate() {
+            let budget = min / 2 + (b * (max - min / 2) as f64) as usize;
+            let fit = search.fit(&mut cache, &s.vm, &criteria, view, budget,
+                floor.unwrap_or(0.0)).unwrap();
+            let context = format!("{} frame {k} budget {budget}", NAMES[which]);
+            prop_assert_eq!(fit.triangles, cache.triangle_count(), "{}", context);
+            prop_assert!(fit.updates <= search.max_updates + 1, "{}", context);
+            if fit.tolerance_px.is_finite() {
+                prop_assert!(fit.within && fit.triangles <= budget, "{}", context);
+                let reference = criteria.with_screen_space(Some(
+                    ScreenSpaceError::new(fit.tolerance_px).unwrap()));
+                extract(&s.vm, &reference, view, &mut flat).unwrap();
+                prop_assert_eq!(triangle_multiset(cache.indices()), triangle_multiset(&flat),
+                    "{}: not the level of its tolerance", context);
+                let lower = ((1.0 - search.slack) * budget as f32) as usize;
+                let floor = floor.unwrap_or(0.0);
+                if fit.updates < search.max_updates && fit.triangles < lower
+                    && fit.tolerance_px > floor.max(2e-3) * 2.0
+                {
+                    let finer = criteria.with_screen_space(Some(
+                        ScreenSpaceError::new(fit.tolerance_px / 2.0).unwrap()));
+                    extract(&s.vm, &finer, view, &mut flat).unwrap();
+                    prop_assert!(flat.len() / 3 > budget,
+                        "{}: half the tolerance {} also fits ({} triangles)", context,
+                        fit.tolerance_px, flat.len() / 3);
+                }
+            } else {
+                // The fallback: the coarsest level the dependencies allow.
+                prop_assert_eq!(fit.triangles, min, "{}", context);
+                prop_assert_eq!(fit.within, min <= budget, "{}", context);
+            }
+        }
     }
 }
 

@@ -57,12 +57,14 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod budget;
 mod cache;
 mod criteria;
 mod error;
 mod extract;
 mod view;
 
+pub use budget::{BudgetFit, ToleranceSearch};
 pub use cache::VariableCache;
 pub use criteria::{
     BackFacing, Criteria, Criterion, Frustum, Illumination, LevelCut, Node, ScreenSpaceError,
