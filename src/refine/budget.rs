@@ -214,7 +214,7 @@ impl ToleranceSearch {
                     if b >= MAX_TOLERANCE_PX {
                         break;
                     }
-                    (b * 2.0).max(MIN_TOLERANCE_PX).min(MAX_TOLERANCE_PX)
+                    (b * 2.0).clamp(MIN_TOLERANCE_PX, MAX_TOLERANCE_PX)
                 }
                 _ => break,
             };
