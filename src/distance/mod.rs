@@ -9,6 +9,8 @@
 //!   bounding-box diagonal of the first mesh.
 //! * [`one_sided`] is the directed measure from the samples of one mesh to a [`Bvh`] of another,
 //!   for callers that compare many meshes against one reference and build its BVH once.
+//! * [`surface_samples`] gives those sample points themselves, each with its triangle, for
+//!   callers that measure distances of their own.
 //! * [`Bvh`] answers exact closest-point queries against a triangle soup;
 //!   [`point_triangle_distance_sq`] is the exact point-to-triangle distance it is built on.
 //!
@@ -273,6 +275,42 @@ pub fn mesh_distance(a: MeshRef, b: MeshRef, opts: &DistanceOptions) -> Distance
 pub fn one_sided(from: MeshRef, to: &Bvh, opts: &DistanceOptions) -> (f32, f32) {
     let s = one_sided_stats(from, to, opts);
     (s.max_d2.sqrt(), rms(s.rms_sum, s.rms_count))
+}
+
+/// The sample points [`one_sided`] and [`mesh_distance`] draw on `mesh`, for callers that
+/// measure distances of their own (from one view, per pixel, ...): each point with the index
+/// of the triangle it lies on (`indices[3 * t..3 * t + 3]`).
+///
+/// The area samples come first ([`DistanceOptions::samples`] of them, spread by area as the
+/// [module documentation](self) describes), then the vertex and edge-midpoint samples that
+/// [`DistanceOptions::include_vertices`] and [`DistanceOptions::include_edge_midpoints`] ask
+/// for; each list is in the same spatially coherent (Morton) order the measures query them in,
+/// so consecutive points are close. The same mesh and seed give the same points. A mesh with
+/// no valid triangle gives none.
+///
+/// ```
+/// use bevy_aslod::distance::{DistanceOptions, MeshRef, surface_samples};
+/// use glam::Vec3;
+///
+/// let positions = [Vec3::ZERO, Vec3::X, Vec3::Y];
+/// let options = DistanceOptions::default().with_samples(100);
+/// let points = surface_samples(MeshRef::new(&positions, &[0, 1, 2]), &options);
+/// // 100 area samples, then the 3 vertices.
+/// assert_eq!(points.len(), 103);
+/// let inside = |p: Vec3| p.x >= 0.0 && p.y >= 0.0 && p.x + p.y <= 1.0 + 1e-6;
+/// assert!(points.iter().all(|&(p, t)| t == 0 && inside(p)));
+/// ```
+#[must_use]
+pub fn surface_samples(mesh: MeshRef, opts: &DistanceOptions) -> Vec<(Vec3, u32)> {
+    let samples = sample_surface(mesh, opts);
+    let triangle = |k: u32| samples.tris[k as usize].0;
+    samples
+        .area
+        .iter()
+        .zip(&samples.area_tri)
+        .chain(samples.extra.iter().zip(&samples.extra_tri))
+        .map(|(&p, &k)| (Vec3::from(p), triangle(k)))
+        .collect()
 }
 
 /// Squared distances of one direction: the maximum over every sample and the sum and count of
