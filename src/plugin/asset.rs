@@ -3,7 +3,8 @@
 use crate::bevy_mesh::from_bevy_mesh;
 use crate::budget::{Obb, fit_aabb};
 use crate::mesh::{IndexedMesh, MeshError};
-use crate::multires::BuildOptions;
+use crate::multires::{BuildOptions, ProgressiveMesh};
+use crate::refine::VariableMesh;
 use crate::regions::{GridPlane, Partition, Region, RegionError, RegionMesh};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
@@ -30,6 +31,9 @@ pub enum MultiresError {
     /// Building the asset panicked (a bug in this crate; please report it with the mesh).
     #[error("building the multiresolution mesh panicked")]
     BuildPanicked,
+    /// The view-dependent data could not be prepared.
+    #[error(transparent)]
+    Refine(#[from] crate::refine::RefineError),
     /// An inverse bind matrix has a NaN or infinite entry.
     #[error("inverse bind matrix {joint} is not finite")]
     NonFiniteBindpose {
@@ -80,6 +84,8 @@ pub struct MultiresMesh {
     /// The axis-aligned box around every region box.
     bounds: Obb,
     pub(super) skin: Option<Arc<super::skin::SkinBinding>>,
+    /// The whole mesh as one variable-resolution mesh, for [`ViewDependent`](super::ViewDependent).
+    variable: Option<Arc<VariableMesh>>,
 }
 
 impl MultiresMesh {
@@ -98,7 +104,45 @@ impl MultiresMesh {
             obbs,
             bounds,
             skin: None,
+            variable: None,
         }
+    }
+
+    /// Adds the refinement data a [`ViewDependent`](super::ViewDependent) model needs: the
+    /// whole of `mesh` (the mesh the regions were built from) as one progressive mesh with
+    /// the view-dependent bounds ([`BuildOptions::view_dependent`] is turned on), about
+    /// 7 bytes per triangle more than a plain one, plus the dependency graph.
+    ///
+    /// ```
+    /// use bevy_aslod::plugin::{MultiresMesh, PartitionSpec};
+    /// use bevy_aslod::prelude::*;
+    ///
+    /// let (mesh, _) = IndexedMesh::load("../shared/testdata/meshes/cow.obj")?;
+    /// let partition = PartitionSpec::Clusters(8).partition(&mesh)?;
+    /// let cow = MultiresMesh::from_indexed(&mesh, &partition)?
+    ///     .with_refinement(&mesh, &BuildOptions::default())?;
+    /// assert!(cow.variable().is_some());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`MultiresError::Mesh`] when `mesh` is invalid or too large to build.
+    pub fn with_refinement(
+        mut self,
+        mesh: &IndexedMesh,
+        options: &BuildOptions,
+    ) -> Result<Self, MultiresError> {
+        let options = options.clone().with_view_dependent(true);
+        let pm = ProgressiveMesh::build(mesh, &options)?;
+        self.variable = Some(Arc::new(VariableMesh::new(pm)?));
+        Ok(self)
+    }
+
+    /// The refinement data, when [`with_refinement`](Self::with_refinement) added it.
+    #[inline]
+    #[must_use]
+    pub fn variable(&self) -> Option<&Arc<VariableMesh>> {
+        self.variable.as_ref()
     }
 
     /// Builds the regions of `mesh` cut by `partition`, with default [`BuildOptions`].

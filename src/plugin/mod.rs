@@ -16,6 +16,8 @@
 //! | [`MultiresModel`] | model root | which [`MultiresMesh`] to show |
 //! | [`LodPriority`] | model root (optional) | the user constant `c` in `w = c·A`; default `1` |
 //! | [`CountInBudget`] | a conventional `Mesh3d` entity | its triangles are fixed cost |
+//! | [`ViewDependent`] | model root (optional) | refine the model per frame as one variable-resolution mesh instead of by regions |
+//! | [`RefineCamera`] | a camera (optional) | the camera view-dependent models refine for |
 //! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε |
 //! | [`AslodViewport`] | resource (optional) | viewport size for cameras without a known one |
 //! | [`AslodOverlay`] | resource | draws every region's world box with gizmos |
@@ -53,6 +55,7 @@
 
 mod asset;
 mod overlay;
+mod refine;
 mod render;
 mod scene;
 mod skin;
@@ -61,6 +64,7 @@ mod tasks;
 
 pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
+pub use refine::{RefineCamera, Refinement, VariableLevel, ViewDependent};
 pub use render::{RegionUpload, RegionUploadStats};
 pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
 pub use skin::{MultiresSkin, SkinBinding};
@@ -344,6 +348,9 @@ pub struct MultiresInstance {
     settled: bool,
     /// The triangles `SelectLod` left the instance showing, all regions together.
     shown: u64,
+    /// A [`ViewDependent`] model: its variable-resolution level, drawn instead of the
+    /// regions (which are hidden and keep their levels).
+    fine: Option<refine::FineState>,
 }
 
 /// Where a model's regions sat in the last allocation that included it.
@@ -418,11 +425,47 @@ impl MultiresInstance {
         &self.region_entities
     }
 
-    /// Triangles the instance shows now, all regions together.
+    /// Triangles the instance shows now: all regions together, or its variable-resolution
+    /// level while it is [`ViewDependent`].
     #[inline]
     #[must_use]
     pub fn triangle_count(&self) -> usize {
-        self.caches.total_triangles()
+        match &self.fine {
+            Some(fine) => fine.triangle_count(),
+            None => self.caches.total_triangles(),
+        }
+    }
+
+    /// What the model's view-dependent refinement did last frame, while it is
+    /// [`ViewDependent`] (and not skinned).
+    #[inline]
+    #[must_use]
+    pub fn refinement(&self) -> Option<&Refinement> {
+        self.fine.as_ref().map(|f| &f.report)
+    }
+
+    /// The entity drawing the model's variable-resolution level, while it is [`ViewDependent`].
+    #[inline]
+    #[must_use]
+    pub fn variable_level_entity(&self) -> Option<Entity> {
+        self.fine.as_ref().map(|f| f.entity)
+    }
+
+    /// Every entity that draws the model: the regions, and the variable-resolution level.
+    fn drawn_entities(&self) -> impl Iterator<Item = Entity> + '_ {
+        self.region_entities
+            .iter()
+            .copied()
+            .chain(self.fine.as_ref().map(|f| f.entity))
+    }
+
+    /// How many allocation inputs the model fills: one per region, one for a budgeted
+    /// view-dependent model, none for a tolerance-only one.
+    fn input_len(&self) -> usize {
+        match &self.fine {
+            None => self.regions.regions().len(),
+            Some(fine) => usize::from(fine.settings.budgeted),
+        }
     }
 }
 

@@ -1,5 +1,6 @@
 //! The plugin's systems, one per step of the runtime loop.
 
+use super::refine::{FineState, Goal, RefineCamera, VariableLevel, ViewDependent};
 use super::render::{self, RegionUpload, RenderWrites};
 use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
 use super::tasks::{ComputePool, par_chunks};
@@ -10,6 +11,7 @@ use super::{
 };
 use crate::bevy_mesh::to_bevy_mesh;
 use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
+use crate::refine::View;
 use crate::regions::RegionCaches;
 use crate::skin::SkinRegionKind;
 use bevy::asset::AssetId;
@@ -28,11 +30,26 @@ use bevy::transform::TransformSystems;
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(super) struct MaterialSystems;
 
+/// A camera a view-dependent model may refine for.
+#[derive(Clone, Copy, Debug)]
+struct CameraView {
+    entity: Entity,
+    clip_from_world: Mat4,
+    /// Viewport height in pixels.
+    height: f32,
+    /// Its index in `AslodScratch::cameras` (active cameras only).
+    area: Option<usize>,
+    /// Marked [`RefineCamera`].
+    marked: bool,
+}
+
 /// Buffers kept across frames.
 #[derive(Resource, Default)]
 pub(crate) struct AslodScratch {
     allocator: Allocator,
     cameras: Vec<ProjectedAreaCamera>,
+    /// The cameras view-dependent models may refine for.
+    views: Vec<CameraView>,
     inputs: Vec<RegionInput>,
     counts: Vec<u32>,
     /// Counts the allocations; [`MultiresInstance::input_run`] names the one it took part in.
@@ -68,6 +85,7 @@ pub(super) fn configure(app: &mut App) {
                     super::scene::convert_scenes,
                     rebuild_modified,
                     spawn_regions,
+                    sync_view_dependent,
                 )
                     .chain()
                     .in_set(AslodSystems::Spawn),
@@ -204,6 +222,7 @@ pub(super) fn spawn_regions(
             settled: false,
             shown: 0,
             region_entities,
+            fine: None,
         });
     }
 }
@@ -226,14 +245,22 @@ pub(super) fn propagate_materials<M: Material>(
     // Removed and not given back (in the same frame) by the time this runs.
     instances: Query<&MultiresInstance, Without<MeshMaterial3d<M>>>,
     mut removed: RemovedComponents<MeshMaterial3d<M>>,
+    new_levels: Query<(Entity, &ChildOf), Added<VariableLevel>>,
+    materials: Query<&MeshMaterial3d<M>>,
     mut given: ResMut<MaterialsGiven>,
 ) {
     for (model, instance, material) in &changed {
         given.0.push(model);
-        for &region in &instance.region_entities {
+        for region in instance.drawn_entities() {
             if let Ok(mut region) = commands.get_entity(region) {
                 region.try_insert(material.clone());
             }
+        }
+    }
+    // A view-dependent model's level, made after its regions took their material.
+    for (level, parent) in &new_levels {
+        if let Ok(material) = materials.get(parent.parent()) {
+            commands.entity(level).try_insert(material.clone());
         }
     }
     for model in removed.read() {
@@ -241,7 +268,7 @@ pub(super) fn propagate_materials<M: Material>(
         let Ok(instance) = instances.get(model) else {
             continue;
         };
-        for &region in &instance.region_entities {
+        for region in instance.drawn_entities() {
             if let Ok(mut region) = commands.get_entity(region) {
                 region.try_remove::<MeshMaterial3d<M>>();
             }
@@ -289,6 +316,98 @@ fn rebuild_modified(
     }
 }
 
+/// Starts and stops the view-dependent refinement of models as their [`ViewDependent`] comes
+/// and goes: gives the model a child drawing its variable-resolution level and hides its
+/// regions, or despawns that child, frees its mesh and shows the regions again.
+#[allow(clippy::type_complexity)]
+pub(super) fn sync_view_dependent(
+    mut commands: Commands,
+    mut models: Query<(
+        Entity,
+        &mut MultiresInstance,
+        &MultiresModel,
+        Option<Ref<ViewDependent>>,
+    )>,
+    assets: Res<Assets<MultiresMesh>>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut warned: Local<bevy::ecs::entity::EntityHashSet>,
+) {
+    for (entity, mut instance, model, settings) in &mut models {
+        match (instance.fine.is_some(), settings) {
+            (false, None) => {}
+            (true, Some(settings)) => {
+                if settings.is_changed()
+                    && let Some(fine) = &mut instance.fine
+                {
+                    fine.settings = (*settings).clone();
+                }
+            }
+            (true, None) => {
+                let Some(fine) = instance.fine.take() else {
+                    continue;
+                };
+                commands.entity(fine.entity).try_despawn();
+                meshes.remove(&fine.handle);
+                for &region in &instance.region_entities {
+                    commands.entity(region).try_insert(Visibility::Inherited);
+                }
+                // The regions kept their levels and their meshes; the next allocation moves them.
+                instance.settled = false;
+                warned.remove(&entity);
+            }
+            (false, Some(settings)) => {
+                let variable = assets.get(&model.0).and_then(|a| a.variable().cloned());
+                let reason = if instance.is_skinned() {
+                    Some("it is skinned, and skinned models keep their regions")
+                } else if variable.is_none() {
+                    Some("its MultiresMesh has no refinement data (MultiresMesh::with_refinement)")
+                } else {
+                    None
+                };
+                if let Some(reason) = reason {
+                    if warned.insert(entity) {
+                        warn!(
+                            "MultiresModel {entity} is ViewDependent but keeps its regions: {reason}"
+                        );
+                    }
+                    continue;
+                }
+                let Some(variable) = variable else { continue };
+                let narrow = variable.mesh().vertices().vertex_count() <= usize::from(u16::MAX);
+                let mut mesh = to_bevy_mesh(
+                    &crate::mesh::IndexedMesh {
+                        joints: None,
+                        weights: None,
+                        ..variable.mesh().vertices().clone()
+                    },
+                    &[],
+                );
+                mesh.insert_indices(if narrow {
+                    Indices::U16(vec![0; 3])
+                } else {
+                    Indices::U32(vec![0; 3])
+                });
+                let aabb = mesh.compute_aabb().unwrap_or_default();
+                let handle = meshes.add(mesh);
+                let child = commands
+                    .spawn((
+                        Mesh3d(handle.clone()),
+                        VariableLevel,
+                        Transform::default(),
+                        ChildOf(entity),
+                        aabb,
+                        NoAutoAabb,
+                    ))
+                    .id();
+                for &region in &instance.region_entities {
+                    commands.entity(region).try_insert(Visibility::Hidden);
+                }
+                instance.fine = Some(FineState::new(variable, child, handle, (*settings).clone()));
+            }
+        }
+    }
+}
+
 /// Removes a model's region entities (those under the model and those under joints) and
 /// their meshes when its instance goes away.
 pub(super) fn remove_region_meshes(
@@ -300,13 +419,17 @@ pub(super) fn remove_region_meshes(
     let Ok(instance) = instances.get(remove.entity) else {
         return;
     };
-    for &entity in &instance.region_entities {
+    for entity in instance.drawn_entities() {
         commands.entity(entity).try_despawn();
     }
     let Some(mut meshes) = meshes else {
         return;
     };
-    for handle in &instance.meshes {
+    for handle in instance
+        .meshes
+        .iter()
+        .chain(instance.fine.as_ref().map(|f| &f.handle))
+    {
         meshes.remove(handle);
     }
 }
@@ -322,12 +445,21 @@ fn viewport_size(camera: &Camera, fallback: Option<&AslodViewport>) -> Option<Ve
 
 /// `Allocate`: projected area of every region of every model, maximum over cameras, budget
 /// split over all of them at once.
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn allocate(
     budget: Res<PolygonBudget>,
     full_detail: Res<FullDetail>,
     viewport: Option<Res<AslodViewport>>,
-    cameras: Query<(&Camera, &GlobalTransform, &Projection), With<Camera3d>>,
+    cameras: Query<
+        (
+            Entity,
+            &Camera,
+            &GlobalTransform,
+            &Projection,
+            Has<RefineCamera>,
+        ),
+        With<Camera3d>,
+    >,
     mut models: Query<(
         &mut MultiresInstance,
         &GlobalTransform,
@@ -346,8 +478,9 @@ fn allocate(
     scratch.allocated = None;
     stats.budget = budget.total;
     scratch.cameras.clear();
-    for (camera, transform, projection) in &cameras {
-        if !camera.is_active {
+    scratch.views.clear();
+    for (entity, camera, transform, projection, marked) in &cameras {
+        if !camera.is_active && !marked {
             continue;
         }
         let Some(size) = viewport_size(camera, viewport.as_deref()) else {
@@ -359,11 +492,27 @@ fn allocate(
         if clip_from_view == Mat4::IDENTITY || clip_from_view == Mat4::ZERO {
             clip_from_view = projection.get_clip_from_view();
         }
-        match ProjectedAreaCamera::from_world_from_view(transform.to_matrix(), clip_from_view, size)
-        {
-            Ok(c) => scratch.cameras.push(c),
-            Err(e) => debug!("skipping a camera for LOD allocation: {e}"),
+        let mut area = None;
+        if camera.is_active {
+            match ProjectedAreaCamera::from_world_from_view(
+                transform.to_matrix(),
+                clip_from_view,
+                size,
+            ) {
+                Ok(c) => {
+                    area = Some(scratch.cameras.len());
+                    scratch.cameras.push(c);
+                }
+                Err(e) => debug!("skipping a camera for LOD allocation: {e}"),
+            }
         }
+        scratch.views.push(CameraView {
+            entity,
+            clip_from_world: clip_from_view * transform.to_matrix().inverse(),
+            height: size.y,
+            area,
+            marked,
+        });
     }
     stats.cameras = scratch.cameras.len();
     if scratch.cameras.is_empty() || models.is_empty() {
@@ -378,7 +527,14 @@ fn allocate(
             None => m.count_vertices() as u64 / 3,
         })
         .sum();
-    let fixed_cost = u32::try_from(fixed_cost).unwrap_or(u32::MAX);
+    // View-dependent models without a budget are fixed cost, at last frame's count.
+    let tolerance_only: u64 = models
+        .iter()
+        .filter_map(|(i, ..)| i.fine.as_ref())
+        .filter(|f| !f.settings.budgeted)
+        .map(|f| f.triangle_count() as u64)
+        .sum();
+    let fixed_cost = u32::try_from(fixed_cost + tolerance_only).unwrap_or(u32::MAX);
 
     // Each model's regions fill one run of `inputs`, in query order, and the model notes
     // where its run starts (`SelectLod` reads its targets from the same run of `counts`, in
@@ -387,7 +543,7 @@ fn allocate(
     let serial = scratch.serial;
     let items: Vec<_> = models
         .iter_mut()
-        .map(|item| (item.0.regions.regions().len(), item))
+        .map(|item| (item.0.input_len(), item))
         .collect();
     let model_count = items.len();
     let total: usize = items.iter().map(|(n, _)| n).sum();
@@ -403,6 +559,7 @@ fn allocate(
         rest = tail;
     }
     let cameras = &scratch.cameras;
+    let views = &scratch.views;
     let full_detail = full_detail.0;
     let fill = |chunk: &mut [AreaJob<'_>]| {
         let mut scratch = AreaScratch::default();
@@ -411,6 +568,18 @@ fn allocate(
                 allocation: serial,
                 first: *offset,
             };
+            if instance.fine.is_some() {
+                fine_input(
+                    instance,
+                    transform,
+                    *priority,
+                    cameras,
+                    views,
+                    full_detail,
+                    out,
+                );
+                continue;
+            }
             region_inputs(
                 instance,
                 transform,
@@ -462,6 +631,91 @@ fn allocate(
     diag.add_measurement(&diagnostics::BUDGET, || f64::from(budget.total));
 }
 
+/// The user priority `c` of a model (see [`LodPriority`]).
+fn priority_of(priority: Option<&LodPriority>) -> f32 {
+    priority
+        .map(|p| p.0)
+        .filter(|c| c.is_finite() && *c > 0.0)
+        .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 })
+}
+
+/// A view-dependent model in `Allocate`: what it refines for this frame ([`Goal`]) and, when
+/// it is budgeted, its one allocation input: its bounds' largest projected area, between its
+/// coarsest level and the most it can use.
+fn fine_input(
+    instance: &mut MultiresInstance,
+    transform: &GlobalTransform,
+    priority: Option<&LodPriority>,
+    cameras: &[ProjectedAreaCamera],
+    views: &[CameraView],
+    full_detail: bool,
+    out: &mut [RegionInput],
+) {
+    let bounds = instance.bounds.transformed(&transform.affine());
+    let area_of = |cam: &ProjectedAreaCamera| {
+        let a = if cam.may_see(&bounds) {
+            cam.projected_area(&bounds)
+        } else {
+            0.0
+        };
+        if a.is_finite() { a } else { 0.0 }
+    };
+    let Some(fine) = &mut instance.fine else {
+        return;
+    };
+    fine.goal = if full_detail {
+        Goal::Full
+    } else {
+        // The marked camera, else the active one that sees the model largest.
+        let chosen = views.iter().find(|v| v.marked).or_else(|| {
+            views
+                .iter()
+                .filter_map(|v| Some((v, area_of(cameras.get(v.area?)?))))
+                .filter(|(_, a)| *a > 0.0)
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(v, _)| v)
+        });
+        match chosen {
+            None => Goal::Coarsest,
+            Some(v) => {
+                match View::from_clip_from_local(
+                    v.clip_from_world * transform.to_matrix(),
+                    v.height,
+                ) {
+                    Ok(view) => Goal::Refine(view, v.entity),
+                    Err(e) => {
+                        warn_once!(
+                            "a ViewDependent model refines uniformly: its camera cannot drive a refinement ({e})"
+                        );
+                        Goal::Uniform
+                    }
+                }
+            }
+        }
+    };
+    let Some(input) = out.first_mut() else {
+        return; // not budgeted
+    };
+    let pm = fine.mesh.mesh();
+    let (min, max) = if full_detail {
+        (pm.max_triangles(), pm.max_triangles())
+    } else {
+        (pm.min_triangles(), fine.max_useful())
+    };
+    let area = if full_detail {
+        0.0
+    } else {
+        cameras.iter().map(area_of).fold(0.0, f32::max)
+    };
+    *input = RegionInput::from_area(
+        area,
+        priority_of(priority),
+        min as u32,
+        max as u32,
+        fine.triangle_count() as u32,
+    );
+}
+
 /// One model of `Allocate` and the run of inputs it fills.
 type AreaJob<'a> = (
     (
@@ -497,10 +751,7 @@ fn region_inputs(
     out: &mut [RegionInput],
 ) {
     let AreaScratch { local, areas, one } = scratch;
-    let c = priority
-        .map(|p| p.0)
-        .filter(|c| c.is_finite() && *c > 0.0)
-        .unwrap_or(if priority.is_some() { 0.0 } else { 1.0 });
+    let c = priority_of(priority);
     let affine = transform.affine();
     let skinned = instance.skin.as_ref().map(|s| s.world_obbs.as_slice());
     // Every region box lies inside the model's box: when that one is out of every view, so
@@ -574,6 +825,21 @@ fn select_lod(
         let mut triangles = 0u64;
         for instance in chunk {
             let InputRun { allocation, first } = instance.input_run;
+            if let Some(fine) = &mut instance.fine {
+                let this_frame = fresh == Some(allocation);
+                if !this_frame {
+                    fine.goal = Goal::Keep;
+                }
+                fine.target = counts
+                    .get(first)
+                    .copied()
+                    .filter(|_| this_frame && fine.settings.budgeted);
+                let shown = fine.select() as u64;
+                instance.shown = shown;
+                instance.settled = false;
+                triangles += shown;
+                continue;
+            }
             let run = counts
                 .get(first..first + instance.targets.len())
                 .filter(|_| fresh == Some(allocation));
@@ -708,13 +974,16 @@ fn empty_indices(narrow: bool) -> Indices {
     }
 }
 
+/// The entities `Upload` writes meshes of: regions and variable-resolution levels.
+type RegionLike = Or<(With<LodRegion>, With<VariableLevel>)>;
+
 /// Where `Upload` writes: the meshes, how, the renderer's queue and the region boxes it marks
 /// changed (so Bevy rebuilds those instances' draw data from the new index slices).
 struct UploadTarget<'a, 'w, 's> {
     meshes: &'a mut Assets<Mesh>,
     direct: bool,
     writes: &'a mut RenderWrites,
-    aabbs: &'a mut Query<'w, 's, &'static mut Aabb, With<LodRegion>>,
+    aabbs: &'a mut Query<'w, 's, &'static mut Aabb, RegionLike>,
     /// Bytes handed to the renderer this frame.
     bytes: u64,
 }
@@ -839,7 +1108,7 @@ fn upload(
     mut meshes: ResMut<Assets<Mesh>>,
     mode: Res<RegionUpload>,
     mut writes: ResMut<RenderWrites>,
-    mut aabbs: Query<&'static mut Aabb, With<LodRegion>>,
+    mut aabbs: Query<&'static mut Aabb, RegionLike>,
     mut stats: ResMut<AslodStats>,
     mut diag: Diagnostics,
 ) {
@@ -854,6 +1123,14 @@ fn upload(
     };
     for mut instance in &mut models {
         let instance = &mut *instance;
+        if let Some(fine) = &mut instance.fine
+            && std::mem::take(&mut fine.staged.ready)
+            && let Some(mesh) = target.mesh(fine.id)
+            && swap_staged(mesh, &mut fine.staged.indices)
+        {
+            changed += 1;
+            target.indices_changed(fine.id, fine.entity);
+        }
         changed += upload_skinned(instance, &mut target);
         // Only the regions `SelectLod` wrote: their staging slots and meshes.
         for r in instance.ready.drain(..) {

@@ -1,7 +1,8 @@
 //! The Bevy plugin without a GPU, in one test binary (Bevy links once): `models` (region
 //! children, the budget split, despawn, run-time changes) and `skinned` (skinned characters
-//! against reference linear blend skinning).
+//! against reference linear blend skinning) and `view_dependent` (models refined per frame).
 #![cfg(feature = "bevy")]
 
 mod models;
 mod skinned;
+mod view_dependent;

@@ -1,0 +1,309 @@
+//! View-dependent models: a [`MultiresModel`](super::MultiresModel) refined every frame as one
+//! variable-resolution mesh (the [`refine`](crate::refine) module) instead of by regions.
+
+use super::StagedIndices;
+use crate::refine::{
+    Criteria, LevelCut, ScreenSpaceError, ToleranceSearch, VariableCache, VariableMesh, View,
+};
+use bevy::asset::AssetId;
+use bevy::mesh::Indices;
+use bevy::prelude::*;
+use std::sync::Arc;
+
+/// Makes a [`MultiresModel`](super::MultiresModel) refine per frame as one variable-resolution
+/// mesh: Güdükbay et al.'s view-dependent refinement over MOM's extraction, from the camera
+/// (see [`RefineCamera`]), so the near, lit or silhouette parts of one mesh keep the detail
+/// the rest gives up. Its asset must carry the refinement data
+/// ([`MultiresMesh::with_refinement`](super::MultiresMesh::with_refinement)); skinned models
+/// keep their regions (with a warning).
+///
+/// While it is on, the model draws one child ([`VariableLevel`]) and hides its region
+/// children; removing it shows the regions again and frees the child's mesh.
+///
+/// How many triangles:
+///
+/// | `budgeted` | `tolerance_px` | the model shows |
+/// |---|---|---|
+/// | `true` | `None` | the most detail within the count the α allocation gives it (it takes part like one region, weighted by its bounds' projected area): the smallest screen-space tolerance τ that fits ([`ToleranceSearch`]) |
+/// | `true` | `Some(τ₀)` | the same with τ ≥ τ₀: no more detail than τ₀ pixels of error asks for, and no more than its count (the budget caps the tolerance's count) |
+/// | `false` | `Some(τ₀)` | τ₀ pixels of error, whatever the count (like Godot's `mesh_lod_threshold`); its triangles count against the budget as fixed cost, like [`CountInBudget`](super::CountInBudget) |
+/// | `false` | `None` | full detail where `criteria` keep it |
+///
+/// `criteria` are the other reasons to drop detail (by default Hoppe's: out of the frustum,
+/// facing away); their screen-space tolerance is ignored (τ comes from the table above).
+/// Spheres of interest and lights are in the model's own space.
+///
+/// ```
+/// use bevy_aslod::plugin::ViewDependent;
+/// // Within its share of the budget, never finer than half a pixel of error.
+/// let fine = ViewDependent::default().with_tolerance_px(Some(0.5));
+/// assert!(fine.budgeted);
+/// ```
+#[derive(Component, Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct ViewDependent {
+    /// The screen-space tolerance in pixels (see the table). A NaN, infinite or negative
+    /// value is ignored, with a warning. Default: `None`.
+    pub tolerance_px: Option<f32>,
+    /// Whether the model takes part in the budget allocation. Default: `true`.
+    pub budgeted: bool,
+    /// The criteria besides the screen-space error. Default: frustum and back faces.
+    pub criteria: Criteria,
+}
+
+impl Default for ViewDependent {
+    fn default() -> Self {
+        Self {
+            tolerance_px: None,
+            budgeted: true,
+            criteria: Criteria::default()
+                .with_frustum(true)
+                .with_back_facing(true),
+        }
+    }
+}
+
+with_setters!(ViewDependent {
+    tolerance_px: Option<f32> => with_tolerance_px,
+    budgeted: bool => with_budgeted,
+    criteria: Criteria => with_criteria,
+});
+
+impl ViewDependent {
+    /// A pixel tolerance and no budget (the table's third row).
+    #[must_use]
+    pub fn tolerance(px: f32) -> Self {
+        Self {
+            tolerance_px: Some(px),
+            budgeted: false,
+            ..Self::default()
+        }
+    }
+}
+
+/// Marks the camera that view-dependent models refine for, active or not (Güdükbay et al.'s
+/// phantom camera: it may drive the refinement while another camera looks at the result).
+/// The first one found is used. Without one, each model refines for the active 3D camera
+/// that sees its bounds largest, so in split screen every model is as fine as its nearest
+/// view needs; a view that sees it smaller gets the same mesh.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RefineCamera;
+
+/// The child that draws a [`ViewDependent`] model (the plugin spawns it).
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct VariableLevel;
+
+/// What a view-dependent model did in the last `SelectLod`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub struct Refinement {
+    /// Triangles shown.
+    pub triangles: usize,
+    /// The count the allocation gave it this frame (budgeted models), else `None`.
+    pub allocated: Option<u32>,
+    /// The screen-space tolerance of the level, in pixels: `0` at full detail, infinite at
+    /// the coarsest-level fallback, `NaN` when the level was not refined from a view (out of
+    /// view, an orthographic camera).
+    pub tolerance_px: f32,
+    /// The camera it refined for.
+    pub camera: Option<Entity>,
+    /// Incremental updates run this frame.
+    pub updates: u32,
+}
+
+/// What `Allocate` decided a view-dependent model shows this frame.
+// One per view-dependent model, replaced every frame: the size does not matter.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, Default)]
+pub(super) enum Goal {
+    /// No allocation this frame: keep the level.
+    #[default]
+    Keep,
+    /// `FullDetail(true)`: everything.
+    Full,
+    /// No camera sees it: the coarsest level.
+    Coarsest,
+    /// An orthographic camera (no screen-space error): the uniform level within the count.
+    Uniform,
+    /// Refine for this view (in the model's space), from this camera.
+    Refine(View, Entity),
+}
+
+/// A view-dependent model's state, kept in its [`MultiresInstance`](super::MultiresInstance).
+#[derive(Debug)]
+pub(super) struct FineState {
+    pub(super) mesh: Arc<VariableMesh>,
+    cache: VariableCache,
+    search: ToleranceSearch,
+    pub(super) entity: Entity,
+    pub(super) handle: Handle<Mesh>,
+    pub(super) id: AssetId<Mesh>,
+    pub(super) staged: StagedIndices,
+    pub(super) settings: ViewDependent,
+    pub(super) goal: Goal,
+    /// The count the allocation gave it, for `SelectLod` (budgeted models).
+    pub(super) target: Option<u32>,
+    /// The count of the last level that ended at the tolerance floor, when it did: what the
+    /// model would use of a larger allocation.
+    pub(super) floor_count: Option<usize>,
+    /// Triangles per uniform level, for the orthographic fallback.
+    level_counts: Vec<usize>,
+    pub(super) report: Refinement,
+    /// Any view: the criteria that ignore it still take one.
+    any_view: View,
+    warned_tolerance: bool,
+}
+
+impl FineState {
+    pub(super) fn new(
+        mesh: Arc<VariableMesh>,
+        entity: Entity,
+        handle: Handle<Mesh>,
+        settings: ViewDependent,
+    ) -> Self {
+        let narrow = mesh.mesh().vertices().vertex_count() <= usize::from(u16::MAX);
+        let any_view = View::perspective(Vec3::Z, Vec3::NEG_Z, Vec3::Y, 1.0, 1.0, 0.1, 1.0)
+            .expect("a valid constant camera");
+        Self {
+            cache: VariableCache::new(&mesh),
+            level_counts: mesh.mesh().level_triangle_counts(),
+            mesh,
+            search: ToleranceSearch::default(),
+            entity,
+            id: handle.id(),
+            handle,
+            staged: StagedIndices {
+                ready: false,
+                indices: if narrow {
+                    Indices::U16(Vec::new())
+                } else {
+                    Indices::U32(Vec::new())
+                },
+            },
+            settings,
+            goal: Goal::Keep,
+            target: None,
+            floor_count: None,
+            report: Refinement::default(),
+            any_view,
+            warned_tolerance: false,
+        }
+    }
+
+    /// Triangles shown.
+    pub(super) fn triangle_count(&self) -> usize {
+        self.cache.triangle_count()
+    }
+
+    /// The tolerance floor of the settings, `None` (with a warning once) when it is unusable.
+    fn floor(&mut self) -> Option<f32> {
+        let t = self.settings.tolerance_px?;
+        if ScreenSpaceError::new(t).is_ok() {
+            return Some(t);
+        }
+        if !std::mem::replace(&mut self.warned_tolerance, true) {
+            warn!(
+                "ViewDependent::tolerance_px is {t} pixels: it must be finite and not negative; ignored"
+            );
+        }
+        None
+    }
+
+    /// The most triangles the model can use this frame, for the allocator: its full detail,
+    /// or about the count at its tolerance floor when the last level ended there.
+    pub(super) fn max_useful(&self) -> usize {
+        let full = self.mesh.mesh().max_triangles();
+        match (self.settings.tolerance_px, self.floor_count) {
+            (Some(_), Some(n)) => (n + n / 4 + 16).clamp(self.mesh.mesh().min_triangles(), full),
+            _ => full,
+        }
+    }
+
+    /// Moves the level to this frame's goal and stages its index buffer when it changed.
+    /// Returns the triangles shown.
+    pub(super) fn select(&mut self) -> usize {
+        let floor = self.floor();
+        let mesh = &*self.mesh;
+        let mut report = Refinement {
+            allocated: self.target,
+            tolerance_px: f32::NAN,
+            ..Refinement::default()
+        };
+        let result = match std::mem::take(&mut self.goal) {
+            Goal::Keep => Ok(()),
+            Goal::Full => {
+                report.tolerance_px = 0.0;
+                self.cache
+                    .update(mesh, &Criteria::default(), &self.any_view)
+                    .map(|_| report.updates = 1)
+            }
+            Goal::Coarsest => self
+                .cache
+                .update(mesh, &LevelCut(usize::MAX), &self.any_view)
+                .map(|_| report.updates = 1),
+            Goal::Uniform => {
+                let target = self.target.map_or(usize::MAX, |t| t as usize);
+                let level = self
+                    .level_counts
+                    .iter()
+                    .position(|&n| n <= target)
+                    .unwrap_or(self.level_counts.len().saturating_sub(1));
+                self.cache
+                    .update(mesh, &LevelCut(level), &self.any_view)
+                    .map(|_| report.updates = 1)
+            }
+            Goal::Refine(view, camera) => {
+                report.camera = Some(camera);
+                let criteria = self.settings.criteria.with_screen_space(None);
+                match self.target.filter(|_| self.settings.budgeted) {
+                    Some(target) => self
+                        .search
+                        .fit(
+                            &mut self.cache,
+                            mesh,
+                            &criteria,
+                            &view,
+                            target as usize,
+                            floor.unwrap_or(0.0),
+                        )
+                        .map(|fit| {
+                            report.updates = fit.updates;
+                            report.tolerance_px = fit.tolerance_px;
+                            self.floor_count = (floor.is_some()
+                                && fit.tolerance_px <= floor.unwrap_or(0.0))
+                            .then_some(fit.triangles);
+                        }),
+                    None => {
+                        let criteria = criteria
+                            .with_screen_space(floor.and_then(|t| ScreenSpaceError::new(t).ok()));
+                        report.tolerance_px = floor.unwrap_or(0.0);
+                        self.cache
+                            .update(mesh, &criteria, &view)
+                            .map(|_| report.updates = 1)
+                    }
+                }
+            }
+        };
+        if let Err(e) = result {
+            warn_once!("a view-dependent model keeps its level: {e}");
+        }
+        report.triangles = self.cache.triangle_count();
+        self.report = report;
+        if self.cache.is_changed() {
+            let indices = self.cache.indices();
+            match &mut self.staged.indices {
+                Indices::U16(buffer) => {
+                    buffer.clear();
+                    buffer.extend(indices.iter().map(|&i| i as u16));
+                }
+                Indices::U32(buffer) => {
+                    buffer.clear();
+                    buffer.extend_from_slice(indices);
+                }
+            }
+            self.staged.ready = true;
+            self.cache.clear_changed();
+        }
+        report.triangles
+    }
+}
