@@ -416,9 +416,15 @@ proptest! {
                         fit.tolerance_px, flat.len() / 3);
                 }
             } else {
-                // The fallback: the coarsest level the dependencies allow.
-                prop_assert_eq!(fit.triangles, min, "{}", context);
+                // The fallback: the largest tolerance cut at the finest uniform level that fits.
+                let cut = fit.level_cut.expect("a level cut");
                 prop_assert_eq!(fit.within, min <= budget, "{}", context);
+                prop_assert!(!fit.within || fit.triangles <= budget, "{}", context);
+                let top = criteria.with_screen_space(Some(
+                    ScreenSpaceError::new(ToleranceSearch::MAX_TOLERANCE_PX).unwrap()));
+                extract(&s.vm, &(top, LevelCut(cut)), view, &mut flat).unwrap();
+                prop_assert_eq!(triangle_multiset(cache.indices()), triangle_multiset(&flat),
+                    "{}: not the level of its cut", context);
             }
         }
     }

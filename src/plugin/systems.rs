@@ -37,8 +37,10 @@ struct CameraView {
     clip_from_world: Mat4,
     /// Viewport height in pixels.
     height: f32,
-    /// Its index in `AslodScratch::cameras` (active cameras only).
-    area: Option<usize>,
+    /// Its projected areas (`None` for a camera they cannot use).
+    projector: Option<ProjectedAreaCamera>,
+    /// Active: it renders, and the allocation weighs regions by what it sees.
+    active: bool,
     /// Marked [`RefineCamera`].
     marked: bool,
 }
@@ -492,25 +494,28 @@ fn allocate(
         if clip_from_view == Mat4::IDENTITY || clip_from_view == Mat4::ZERO {
             clip_from_view = projection.get_clip_from_view();
         }
-        let mut area = None;
-        if camera.is_active {
-            match ProjectedAreaCamera::from_world_from_view(
-                transform.to_matrix(),
-                clip_from_view,
-                size,
-            ) {
-                Ok(c) => {
-                    area = Some(scratch.cameras.len());
-                    scratch.cameras.push(c);
-                }
-                Err(e) => debug!("skipping a camera for LOD allocation: {e}"),
+        let projector = match ProjectedAreaCamera::from_world_from_view(
+            transform.to_matrix(),
+            clip_from_view,
+            size,
+        ) {
+            Ok(c) => Some(c),
+            Err(e) => {
+                debug!("skipping a camera for LOD allocation: {e}");
+                None
             }
+        };
+        if camera.is_active
+            && let Some(c) = projector
+        {
+            scratch.cameras.push(c);
         }
         scratch.views.push(CameraView {
             entity,
             clip_from_world: clip_from_view * transform.to_matrix().inverse(),
             height: size.y,
-            area,
+            projector,
+            active: camera.is_active,
             marked,
         });
     }
@@ -663,14 +668,16 @@ fn fine_input(
     let Some(fine) = &mut instance.fine else {
         return;
     };
+    let marked = views.iter().find(|v| v.marked);
     fine.goal = if full_detail {
         Goal::Full
     } else {
         // The marked camera, else the active one that sees the model largest.
-        let chosen = views.iter().find(|v| v.marked).or_else(|| {
+        let chosen = marked.or_else(|| {
             views
                 .iter()
-                .filter_map(|v| Some((v, area_of(cameras.get(v.area?)?))))
+                .filter(|v| v.active)
+                .filter_map(|v| Some((v, area_of(v.projector.as_ref()?))))
                 .filter(|(_, a)| *a > 0.0)
                 .max_by(|a, b| a.1.total_cmp(&b.1))
                 .map(|(v, _)| v)
@@ -702,10 +709,15 @@ fn fine_input(
     } else {
         (pm.min_triangles(), fine.max_useful())
     };
+    // Weighed by what the active cameras see, and what the camera it refines for sees.
     let area = if full_detail {
         0.0
     } else {
-        cameras.iter().map(area_of).fold(0.0, f32::max)
+        cameras
+            .iter()
+            .chain(marked.and_then(|v| v.projector.as_ref()))
+            .map(area_of)
+            .fold(0.0, f32::max)
     };
     *input = RegionInput::from_area(
         area,

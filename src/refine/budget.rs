@@ -5,8 +5,7 @@ use super::{
     Criterion, LevelCut, RefineError, ScreenSpaceError, VariableCache, VariableMesh, View,
 };
 
-/// The largest tolerance the search tries, in pixels; past it the level drops to the
-/// coarsest one the dependencies allow.
+/// The largest tolerance the search tries, in pixels ([`ToleranceSearch::MAX_TOLERANCE_PX`]).
 const MAX_TOLERANCE_PX: f32 = 1.0e5;
 
 /// The smallest tolerance the search tries above `0`, in pixels.
@@ -21,11 +20,14 @@ const MIN_TOLERANCE_PX: f32 = 1.0e-3;
 /// changes, and the search starts from the last frame's τ: along a smooth camera path the
 /// count at that τ is usually still inside the window `[(1 − slack)·budget, budget]` and one
 /// update is the whole search (Hoppe's frame-to-frame regulation), while a jump (a cut, a new
-/// budget) brackets by doubling or halving τ and then bisects on a logarithmic scale. The
-/// search ends within `max_updates` trials, always at a level within the budget: the one of
-/// the smallest τ tried that fits, or, when no τ up to 10⁵ pixels fits (a budget below what
-/// the criteria keep, an eye inside the mesh), the coarsest level ([`LevelCut`] of every
-/// collapse).
+/// budget) brackets by multiplying or dividing τ by four and then bisects on a logarithmic
+/// scale. The search ends within `max_updates` trials (one more to return to the best level
+/// tried), always at a level within the budget: the one of
+/// the smallest τ tried that fits, or, when no τ up to 10⁵ pixels fits (the eye inside the
+/// bounds of the detail it sees, where no tolerance drops anything, or a budget below what
+/// the other criteria keep), the level of 10⁵ pixels cut at the finest uniform level that
+/// fits ([`LevelCut`], bisected like τ; [`BudgetFit::level_cut`]), or the coarsest level
+/// when none does.
 ///
 /// ```
 /// use bevy_aslod::mesh::IndexedMesh;
@@ -97,6 +99,9 @@ pub struct BudgetFit {
     /// Whether the level is within the budget (false only when even the coarsest level
     /// holds more triangles than the budget).
     pub within: bool,
+    /// When no tolerance fitted: the uniform level `L` that cuts the level of
+    /// [`ToleranceSearch::MAX_TOLERANCE_PX`] (every collapse before `L` is performed too).
+    pub level_cut: Option<usize>,
 }
 
 /// `criterion` or a screen-space tolerance, or every collapse.
@@ -120,8 +125,11 @@ impl<K: Criterion + ?Sized> Criterion for WithTolerance<'_, K> {
 }
 
 impl ToleranceSearch {
+    /// The largest tolerance a search tries, in pixels.
+    pub const MAX_TOLERANCE_PX: f32 = MAX_TOLERANCE_PX;
+
     /// The tolerance the last [`fit`](Self::fit) ended at, in pixels (`None` before the
-    /// first; infinite after the coarsest-level fallback).
+    /// first and after a level-cut fallback).
     #[inline]
     #[must_use]
     pub fn tolerance(&self) -> Option<f32> {
@@ -163,19 +171,24 @@ impl ToleranceSearch {
         }
         criterion.validate()?;
         let mut fit = BudgetFit::default();
-        let run = |cache: &mut VariableCache, tolerance: Option<f32>, fit: &mut BudgetFit| {
-            let all = if tolerance.is_none() { usize::MAX } else { 0 };
-            let c = WithTolerance {
-                criterion,
-                tolerance: tolerance.and_then(|t| ScreenSpaceError::new(t).ok()),
-                all: LevelCut(all),
+        // A trial at a tolerance, or at the largest one cut at a uniform level.
+        let run =
+            |cache: &mut VariableCache, tolerance: Result<f32, usize>, fit: &mut BudgetFit| {
+                let (t, cut) = match tolerance {
+                    Ok(t) => (t, 0),
+                    Err(level) => (MAX_TOLERANCE_PX, level),
+                };
+                let c = WithTolerance {
+                    criterion,
+                    tolerance: ScreenSpaceError::new(t).ok(),
+                    all: LevelCut(cut),
+                };
+                let stats = cache.update(mesh, &c, view)?;
+                fit.updates += 1;
+                fit.evaluated += stats.evaluated;
+                fit.changed += stats.changed;
+                Ok::<usize, RefineError>(stats.triangles)
             };
-            let stats = cache.update(mesh, &c, view)?;
-            fit.updates += 1;
-            fit.evaluated += stats.evaluated;
-            fit.changed += stats.changed;
-            Ok::<usize, RefineError>(stats.triangles)
-        };
         let floor = floor_px;
         let fits = |n: usize| n <= budget;
         // The smallest tolerance known to fit, and the largest known not to.
@@ -186,7 +199,7 @@ impl ToleranceSearch {
             .filter(|t| t.is_finite())
             .unwrap_or(1.0)
             .max(floor);
-        let n = run(cache, Some(start), &mut fit)?;
+        let n = run(cache, Ok(start), &mut fit)?;
         let lower = ((1.0 - self.slack) * budget as f32) as usize;
         if fits(n) && (n >= lower || start <= floor) {
             return Ok(self.finish(fit, start, n, budget));
@@ -196,14 +209,15 @@ impl ToleranceSearch {
         } else {
             bad = Some(start);
         }
-        // Bracket: halve while it fits (down to the floor), double while it does not.
+        // Bracket: divide by four while it fits (down to the floor), multiply by four while it
+        // does not (from one pixel to the largest tolerance in nine trials).
         while fit.updates < self.max_updates {
             let t = match (good, bad) {
                 (Some((g, _)), None) => {
                     let t = if g <= MIN_TOLERANCE_PX {
                         floor
                     } else {
-                        (g * 0.5).max(floor)
+                        (g * 0.25).max(floor)
                     };
                     if t >= g {
                         break;
@@ -214,11 +228,11 @@ impl ToleranceSearch {
                     if b >= MAX_TOLERANCE_PX {
                         break;
                     }
-                    (b * 2.0).clamp(MIN_TOLERANCE_PX, MAX_TOLERANCE_PX)
+                    (b * 4.0).clamp(MIN_TOLERANCE_PX, MAX_TOLERANCE_PX)
                 }
                 _ => break,
             };
-            let n = run(cache, Some(t), &mut fit)?;
+            let n = run(cache, Ok(t), &mut fit)?;
             if fits(n) {
                 good = Some((t, n));
                 if n >= lower || t <= floor {
@@ -239,7 +253,7 @@ impl ToleranceSearch {
             } else {
                 (g * b).sqrt()
             };
-            let n = run(cache, Some(t), &mut fit)?;
+            let n = run(cache, Ok(t), &mut fit)?;
             if fits(n) {
                 good = Some((t, n));
             } else {
@@ -253,13 +267,37 @@ impl ToleranceSearch {
                 let n = if fits(cache.triangle_count()) {
                     n
                 } else {
-                    run(cache, Some(t), &mut fit)?
+                    run(cache, Ok(t), &mut fit)?
                 };
                 Ok(self.finish(fit, t, n, budget))
             }
             None => {
-                let n = run(cache, None, &mut fit)?;
-                Ok(self.finish(fit, f32::INFINITY, n, budget))
+                // The finest uniform cut that fits: between no cut (known or assumed not to
+                // fit) and the first uniform level within the budget (fits).
+                let counts = mesh.mesh().level_triangle_counts();
+                let coarsest = counts.len().saturating_sub(1);
+                let mut hi = counts.iter().position(|&n| n <= budget).unwrap_or(coarsest);
+                let mut lo = 0;
+                let mut last = None;
+                while fit.updates < self.max_updates && hi - lo > (hi / 64).max(1) {
+                    let mid = lo + (hi - lo) / 2;
+                    let n = run(cache, Err(mid), &mut fit)?;
+                    last = Some(mid);
+                    if fits(n) {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                let n = if last == Some(hi) {
+                    cache.triangle_count()
+                } else {
+                    run(cache, Err(hi), &mut fit)?
+                };
+                fit.level_cut = Some(hi);
+                let fit = self.finish(fit, f32::INFINITY, n, budget);
+                self.tolerance = None;
+                Ok(fit)
             }
         }
     }
