@@ -83,7 +83,8 @@ impl ViewDependent {
 
 /// Marks the camera that view-dependent models refine for, active or not (Güdükbay et al.'s
 /// phantom camera: it may drive the refinement while another camera looks at the result).
-/// The first one found is used. Without one, each model refines for the active 3D camera
+/// The first one found is used; without a render target of its own (an inactive camera),
+/// it refines for the viewport of the first active camera (or [`AslodViewport`](super::AslodViewport)). Without one, each model refines for the active 3D camera
 /// that sees its bounds largest, so in split screen every model is as fine as its nearest
 /// view needs; a view that sees it smaller gets the same mesh.
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -481,11 +481,19 @@ fn allocate(
     stats.budget = budget.total;
     scratch.cameras.clear();
     scratch.views.clear();
+    // A phantom `RefineCamera` with no render target of its own refines for the viewport of
+    // the first active camera.
+    let active_size = cameras
+        .iter()
+        .filter(|c| c.1.is_active)
+        .find_map(|c| viewport_size(c.1, viewport.as_deref()));
     for (entity, camera, transform, projection, marked) in &cameras {
         if !camera.is_active && !marked {
             continue;
         }
-        let Some(size) = viewport_size(camera, viewport.as_deref()) else {
+        let size = viewport_size(camera, viewport.as_deref())
+            .or(active_size.filter(|_| marked && !camera.is_active));
+        let Some(size) = size else {
             continue;
         };
         // `camera_system` fills `clip_from_view`; before it has run (or without a renderer)

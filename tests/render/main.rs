@@ -11,3 +11,4 @@ mod basic;
 mod level_changes;
 mod silvretta;
 mod skinned_character;
+mod view_dependent;
