@@ -368,6 +368,7 @@ impl Shots {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn drive_shots(
     mut commands: Commands,
     mut shots: ResMut<Shots>,
