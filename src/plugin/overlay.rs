@@ -47,16 +47,34 @@ const EDGES: [(usize, usize); 12] = [
     (3, 7),
 ];
 
-/// Every region's world box and how far its level is between coarsest (0) and full (1).
+/// Every region's world box and how far its level is between coarsest (0) and full (1); for
+/// a view-dependent model, its bounds and its variable-resolution level.
 fn region_boxes<'a>(
     instance: &'a MultiresInstance,
     transform: &'a GlobalTransform,
 ) -> impl Iterator<Item = (Obb, f32, usize)> + 'a {
     let affine = transform.affine();
     let skinned = instance.skinned_world_boxes();
-    instance
-        .regions
-        .regions()
+    let fine = instance.fine.as_ref().map(|fine| {
+        let pm = fine.mesh.mesh();
+        let (lo, hi, count) = (
+            pm.min_triangles(),
+            pm.max_triangles(),
+            fine.triangle_count(),
+        );
+        let t = if hi > lo {
+            count.saturating_sub(lo) as f32 / (hi - lo) as f32
+        } else {
+            1.0
+        };
+        (instance.bounds.transformed(&affine), t, count)
+    });
+    let regions = if fine.is_some() {
+        &[][..]
+    } else {
+        instance.regions.regions()
+    };
+    regions
         .iter()
         .enumerate()
         .map(move |(r, region)| {
@@ -74,6 +92,7 @@ fn region_boxes<'a>(
             };
             (obb, t, count)
         })
+        .chain(fine)
 }
 
 /// Draws each region's world box, blue at its coarsest level to red at full detail.

@@ -15,7 +15,7 @@ use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodViewport, MultiresInstance, MultiresScene, MultiresSceneModels,
-    MultiresSourceMesh, PolygonBudget,
+    MultiresSourceMesh, PolygonBudget, VariableLevel, ViewDependent,
 };
 use std::time::Duration;
 
@@ -435,4 +435,42 @@ fn a_scene_shows_its_source_meshes_until_its_assets_are_built() {
         "frames ran while the assets were built"
     );
     println!("frames with the source meshes shown while building: {frames_waiting}");
+}
+
+#[test]
+fn a_skinned_model_made_view_dependent_keeps_its_regions() {
+    let mut app = app(2_000, TESTDATA);
+    spawn_character(&mut app, ROBOT, "Dance");
+    let models: Vec<Entity> = app
+        .world_mut()
+        .query_filtered::<Entity, With<MultiresInstance>>()
+        .iter(app.world())
+        .collect();
+    assert!(!models.is_empty());
+    for &m in &models {
+        app.world_mut()
+            .entity_mut(m)
+            .insert(ViewDependent::default());
+    }
+    for _ in 0..3 {
+        app.update();
+    }
+    let mut skinned = 0;
+    for &m in &models {
+        let instance = app.world().get::<MultiresInstance>(m).unwrap();
+        if !instance.is_skinned() {
+            continue;
+        }
+        skinned += 1;
+        assert!(
+            instance.refinement().is_none(),
+            "a skinned model keeps its regions"
+        );
+        for &r in instance.region_entities() {
+            assert_ne!(app.world().get::<Visibility>(r), Some(&Visibility::Hidden));
+        }
+    }
+    assert_eq!(skinned, 4, "the robot's four skinned primitives");
+    let mut levels = app.world_mut().query_filtered::<(), With<VariableLevel>>();
+    assert_eq!(levels.iter(app.world()).count(), 0);
 }

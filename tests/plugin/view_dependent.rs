@@ -305,3 +305,29 @@ fn a_tolerance_only_model_counts_as_fixed_cost() {
     app.update();
     assert!(instance(&app, fine).triangle_count() > report.triangles);
 }
+
+#[test]
+fn with_several_cameras_a_model_refines_for_the_one_that_sees_it_largest_or_the_marked_one() {
+    let mut app = app(100_000);
+    let asset = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(cow());
+    let fine = model(&mut app, &asset, Vec3::ZERO);
+    app.world_mut()
+        .entity_mut(fine)
+        .insert(ViewDependent::default().with_tolerance_px(Some(1.0)));
+    let near = camera(&mut app, Vec3::new(0.0, 2.0, 15.0), Vec3::ZERO);
+    let far = camera(&mut app, Vec3::new(0.0, 2.0, -60.0), Vec3::ZERO);
+    let refined_for = |app: &mut App| {
+        app.update();
+        app.update();
+        instance(app, fine).refinement().and_then(|r| r.camera)
+    };
+    assert_eq!(refined_for(&mut app), Some(near));
+    *app.world_mut().get_mut::<Transform>(far).unwrap() =
+        Transform::from_xyz(0.0, 2.0, -12.0).looking_at(Vec3::ZERO, Vec3::Y);
+    assert_eq!(refined_for(&mut app), Some(far));
+    app.world_mut().entity_mut(near).insert(RefineCamera);
+    assert_eq!(refined_for(&mut app), Some(near));
+}
