@@ -45,6 +45,6 @@ pub mod prelude {
         AslodOverlay, AslodPlugin, AslodStats, AslodSystems, AslodViewport, CountInBudget,
         FullDetail, LodPriority, LodRegion, MultiresError, MultiresInstance,
         MultiresMaterialPlugin, MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels,
-        MultiresSkin, PartitionSpec, PolygonBudget, RegionUpload,
+        MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera, RegionUpload, ViewDependent,
     };
 }
