@@ -231,7 +231,14 @@ impl FineState {
             ..Refinement::default()
         };
         let result = match std::mem::take(&mut self.goal) {
-            Goal::Keep => Ok(()),
+            Goal::Keep => {
+                // No allocation this frame: the level, its tolerance and camera stay.
+                report = Refinement {
+                    updates: 0,
+                    ..self.report
+                };
+                Ok(())
+            }
             Goal::Full => {
                 report.tolerance_px = 0.0;
                 self.cache
