@@ -29,6 +29,7 @@ pub mod executor;
 #[cfg(feature = "mannequin")]
 pub mod mannequin;
 pub mod mesh;
+pub mod mrm;
 pub mod multires;
 #[cfg(feature = "bevy")]
 pub mod plugin;

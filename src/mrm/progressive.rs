@@ -1,0 +1,438 @@
+//! A [`ProgressiveMesh`] as `.mrm` sections, and back, checked.
+
+use super::container::{Reader, Section};
+use super::{FORMAT_VERSION, MrmError};
+use crate::mesh::IndexedMesh;
+use crate::multires::ProgressiveMesh;
+use crate::multires::hierarchy::{Moved, ViewData};
+use crate::multires::records::{Corner, Header, Layout, Records, error_from_u16};
+use glam::{Vec2, Vec3};
+
+/// The sections, in file order, and whether each is required.
+pub(super) const SECTIONS: [([u8; 4], bool); 12] = [
+    (*b"MESH", true),
+    (*b"POS ", true),
+    (*b"NRM ", false),
+    (*b"UV0 ", false),
+    (*b"JNT ", false),
+    (*b"WGT ", false),
+    (*b"IDX ", true),
+    (*b"STEP", true),
+    (*b"CORN", true),
+    (*b"PAIR", true),
+    (*b"ERRS", true),
+    (*b"VIEW", false),
+];
+
+const NORMALS: u8 = 1;
+const UVS: u8 = 2;
+const JOINTS: u8 = 4;
+const WEIGHTS: u8 = 8;
+
+fn vec3s(v: &[Vec3]) -> Vec<u8> {
+    v.iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect()
+}
+
+/// The file bytes of `mesh`.
+pub(super) fn write(mesh: &ProgressiveMesh) -> Vec<u8> {
+    let v = &mesh.vertices;
+    let n = v.positions.len();
+    let flag = |on: bool, bit: u8| if on { bit } else { 0 };
+    let attributes = flag(v.normals.is_some(), NORMALS)
+        | flag(v.uvs.is_some(), UVS)
+        | flag(v.joints.is_some(), JOINTS)
+        | flag(v.weights.is_some(), WEIGHTS);
+    let (narrow, index_count, steps, corners, pairs) = match &mesh.records {
+        Layout::Narrow(r) => (
+            1u8,
+            r.indices.len(),
+            r.steps.len(),
+            r.corners.len(),
+            r.pairs.len(),
+        ),
+        Layout::Wide(r) => (
+            0u8,
+            r.indices.len(),
+            r.steps.len(),
+            r.corners.len(),
+            r.pairs.len(),
+        ),
+    };
+    let mut head = Vec::with_capacity(32);
+    head.extend_from_slice(&(n as u32).to_le_bytes());
+    head.extend_from_slice(&[attributes, narrow, u8::from(mesh.view.is_some()), 0]);
+    for x in [
+        mesh.base_triangles as usize,
+        index_count,
+        steps,
+        corners,
+        pairs,
+    ] {
+        head.extend_from_slice(&(x as u32).to_le_bytes());
+    }
+    let mut sections = vec![(*b"MESH", head), (*b"POS ", vec3s(&v.positions))];
+    if let Some(normals) = &v.normals {
+        sections.push((*b"NRM ", vec3s(normals)));
+    }
+    if let Some(uvs) = &v.uvs {
+        let bytes = uvs
+            .iter()
+            .flat_map(|t| t.to_array())
+            .flat_map(f32::to_le_bytes);
+        sections.push((*b"UV0 ", bytes.collect()));
+    }
+    if let Some(joints) = &v.joints {
+        let bytes = joints.iter().flatten().flat_map(|j| j.to_le_bytes());
+        sections.push((*b"JNT ", bytes.collect()));
+    }
+    if let Some(weights) = &v.weights {
+        let bytes = weights.iter().flatten().flat_map(|w| w.to_le_bytes());
+        sections.push((*b"WGT ", bytes.collect()));
+    }
+    match &mesh.records {
+        Layout::Narrow(r) => records(&mut sections, r, |x: u16| x.to_le_bytes().to_vec()),
+        Layout::Wide(r) => records(&mut sections, r, |x: u32| x.to_le_bytes().to_vec()),
+    }
+    let errors = mesh.errors.iter().flat_map(|e| e.to_le_bytes()).collect();
+    sections.push((*b"ERRS", errors));
+    if let Some(view) = &mesh.view {
+        sections.push((*b"VIEW", view_bytes(view)));
+    }
+    super::container::write(FORMAT_VERSION, &sections)
+}
+
+fn records<V: Copy, H: Header + Into<u32>, C: Corner>(
+    sections: &mut Vec<([u8; 4], Vec<u8>)>,
+    r: &Records<V, H, C>,
+    bytes: impl Fn(V) -> Vec<u8>,
+) {
+    let wide = size_of::<C>() == 4;
+    sections.push((*b"IDX ", r.indices.iter().flat_map(|&i| bytes(i)).collect()));
+    let header = |h: H| -> Vec<u8> {
+        let h: u32 = h.into();
+        if wide {
+            h.to_le_bytes().to_vec()
+        } else {
+            (h as u16).to_le_bytes().to_vec()
+        }
+    };
+    sections.push((*b"STEP", r.steps.iter().flat_map(|&h| header(h)).collect()));
+    let corner = |c: C| -> Vec<u8> {
+        let b = c.get().to_le_bytes();
+        if wide { b.to_vec() } else { b[..3].to_vec() }
+    };
+    sections.push((
+        *b"CORN",
+        r.corners.iter().flat_map(|&c| corner(c)).collect(),
+    ));
+    let pairs = r.pairs.iter().flatten().flat_map(|&v| bytes(v)).collect();
+    sections.push((*b"PAIR", pairs));
+}
+
+fn view_bytes(view: &ViewData) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(&view.diagonal.to_le_bytes());
+    match &view.moved {
+        Moved::Narrow(m) => {
+            out.push(1);
+            out.extend(m.iter().flatten().flat_map(|v| v.to_le_bytes()));
+        }
+        Moved::Wide(m) => {
+            out.push(0);
+            out.extend(m.iter().flatten().flat_map(|v| v.to_le_bytes()));
+        }
+    }
+    out.extend(view.centre.iter().flatten().map(|&c| c as u8));
+    out.extend(view.radius.iter().flat_map(|r| r.to_le_bytes()));
+    out.extend(view.error.iter().flat_map(|e| e.to_le_bytes()));
+    out.extend(view.cone.iter().flatten());
+    out
+}
+
+/// Reads a progressive mesh from checked sections (see [`super::container::read`]).
+pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError> {
+    let find = |tag: &[u8; 4]| sections.iter().find(|s| &s.tag == tag).copied();
+    let mesh = find(b"MESH").ok_or(MrmError::MissingSection("MESH".into()))?;
+    let mut r = Reader::new(mesh);
+    let n = r.u32()? as usize;
+    let [attributes, narrow, has_view, _] = r.array::<4>()?;
+    let base = r.u32()? as usize;
+    let index_count = r.u32()? as usize;
+    let step_count = r.u32()? as usize;
+    let corner_count = r.u32()? as usize;
+    let pair_count = r.u32()? as usize;
+    r.finish()?;
+    if attributes & !(NORMALS | UVS | JOINTS | WEIGHTS) != 0 || narrow > 1 || has_view > 1 {
+        return Err(r.invalid(4, "unknown flags"));
+    }
+    if !index_count.is_multiple_of(3) || base > index_count / 3 {
+        return Err(r.invalid(12, "the index count or base triangle count is inconsistent"));
+    }
+    // Each optional section is there exactly when its flag says so.
+    for (tag, on) in [
+        (b"NRM ", attributes & NORMALS != 0),
+        (b"UV0 ", attributes & UVS != 0),
+        (b"JNT ", attributes & JOINTS != 0),
+        (b"WGT ", attributes & WEIGHTS != 0),
+        (b"VIEW", has_view != 0),
+    ] {
+        if find(tag).is_some() != on {
+            return Err(r.invalid(4, "a section is missing or present against the flags"));
+        }
+    }
+    let section = |tag: &[u8; 4]| {
+        find(tag).ok_or_else(|| MrmError::MissingSection(super::container::tag_name(*tag)))
+    };
+    let f32s = |b: [u8; 4]| f32::from_le_bytes(b);
+    let read_vec3 = |tag: &[u8; 4]| -> Result<Vec<Vec3>, MrmError> {
+        let mut r = Reader::new(section(tag)?);
+        let v = r.items::<12, _>(n, |b| {
+            Vec3::new(
+                f32s([b[0], b[1], b[2], b[3]]),
+                f32s([b[4], b[5], b[6], b[7]]),
+                f32s([b[8], b[9], b[10], b[11]]),
+            )
+        })?;
+        r.finish()?;
+        if let Some(k) = v.iter().position(|p| !p.is_finite()) {
+            return Err(r.invalid(12 * k, "a value is not finite"));
+        }
+        Ok(v)
+    };
+    let positions = read_vec3(b"POS ")?;
+    let normals = (attributes & NORMALS != 0)
+        .then(|| read_vec3(b"NRM "))
+        .transpose()?;
+    let uvs = (attributes & UVS != 0)
+        .then(|| -> Result<Vec<Vec2>, MrmError> {
+            let mut r = Reader::new(section(b"UV0 ")?);
+            let v = r.items::<8, _>(n, |b| {
+                Vec2::new(
+                    f32s([b[0], b[1], b[2], b[3]]),
+                    f32s([b[4], b[5], b[6], b[7]]),
+                )
+            })?;
+            r.finish()?;
+            Ok(v)
+        })
+        .transpose()?;
+    let joints = (attributes & JOINTS != 0)
+        .then(|| -> Result<Vec<[u16; 4]>, MrmError> {
+            let mut r = Reader::new(section(b"JNT ")?);
+            let v = r.items::<8, _>(n, |b| {
+                [0, 2, 4, 6].map(|k| u16::from_le_bytes([b[k], b[k + 1]]))
+            })?;
+            r.finish()?;
+            Ok(v)
+        })
+        .transpose()?;
+    let weights = (attributes & WEIGHTS != 0)
+        .then(|| -> Result<Vec<[f32; 4]>, MrmError> {
+            let mut r = Reader::new(section(b"WGT ")?);
+            let v = r.items::<16, _>(n, |b| {
+                [0, 4, 8, 12].map(|k| f32s([b[k], b[k + 1], b[k + 2], b[k + 3]]))
+            })?;
+            r.finish()?;
+            Ok(v)
+        })
+        .transpose()?;
+    let counts = Counts {
+        vertices: n,
+        base,
+        indices: index_count,
+        steps: step_count,
+        corners: corner_count,
+        pairs: pair_count,
+    };
+    let records = if narrow == 1 {
+        Layout::Narrow(read_records::<u16, u16, [u8; 3], 2, 2, 3>(
+            sections,
+            &counts,
+            u16::from_le_bytes,
+            u16::from_le_bytes,
+            |b| <[u8; 3]>::pack(u32::from_le_bytes([b[0], b[1], b[2], 0])),
+        )?)
+    } else {
+        Layout::Wide(read_records::<u32, u32, u32, 4, 4, 4>(
+            sections,
+            &counts,
+            u32::from_le_bytes,
+            u32::from_le_bytes,
+            u32::from_le_bytes,
+        )?)
+    };
+    let mut r = Reader::new(section(b"ERRS")?);
+    let errors = r.items::<2, _>(step_count, u16::from_le_bytes)?;
+    r.finish()?;
+    for (k, pair) in errors.windows(2).enumerate() {
+        let (a, b) = (error_from_u16(pair[0]), error_from_u16(pair[1]));
+        if !(a.is_finite() && b.is_finite() && a >= 0.0 && b >= a) {
+            return Err(r.invalid(2 * k, "the error table is not finite and monotone"));
+        }
+    }
+    let view = if has_view != 0 {
+        Some(read_view(section(b"VIEW")?, n, step_count)?)
+    } else {
+        None
+    };
+    Ok(ProgressiveMesh {
+        vertices: IndexedMesh {
+            positions,
+            normals,
+            uvs,
+            joints,
+            weights,
+            indices: Vec::new(),
+        },
+        base_triangles: base as u32,
+        records,
+        errors,
+        view,
+    })
+}
+
+/// The counts the `MESH` section declares.
+struct Counts {
+    vertices: usize,
+    base: usize,
+    indices: usize,
+    steps: usize,
+    corners: usize,
+    pairs: usize,
+}
+
+/// The records of one layout, checked so that every cache and refinement walk stays in
+/// bounds: indices and pairs name existing vertices; each step removes at most three of the
+/// live triangles, never below the base, and rewrites corners of the triangles that stay,
+/// naming one of its own pairs; the per-step counts add up to the sections' lengths.
+fn read_records<V, H, C, const VB: usize, const HB: usize, const CB: usize>(
+    sections: &[Section<'_>],
+    counts: &Counts,
+    vertex: impl Fn([u8; VB]) -> V,
+    header: impl Fn([u8; HB]) -> H,
+    corner: impl Fn([u8; CB]) -> C,
+) -> Result<Records<V, H, C>, MrmError>
+where
+    V: Copy + Into<u32>,
+    H: Header,
+    C: Corner,
+{
+    let section = |tag: &[u8; 4]| {
+        sections
+            .iter()
+            .find(|s| &s.tag == tag)
+            .copied()
+            .ok_or_else(|| MrmError::MissingSection(super::container::tag_name(*tag)))
+    };
+    let mut r = Reader::new(section(b"IDX ")?);
+    let indices = r.items::<VB, _>(counts.indices, &vertex)?;
+    r.finish()?;
+    if let Some(k) = indices
+        .iter()
+        .position(|&v| v.into() as usize >= counts.vertices)
+    {
+        return Err(r.invalid(VB * k, "an index names a vertex past the vertex table"));
+    }
+    let mut rs = Reader::new(section(b"STEP")?);
+    let steps = rs.items::<HB, _>(counts.steps, header)?;
+    rs.finish()?;
+    let mut rc = Reader::new(section(b"CORN")?);
+    let corners = rc.items::<CB, _>(counts.corners, corner)?;
+    rc.finish()?;
+    let mut rp = Reader::new(section(b"PAIR")?);
+    let raw = rp.items::<VB, _>(counts.pairs.saturating_mul(2), &vertex)?;
+    rp.finish()?;
+    if let Some(k) = raw
+        .iter()
+        .position(|&v| v.into() as usize >= counts.vertices)
+    {
+        return Err(rp.invalid(VB * k, "a pair names a vertex past the vertex table"));
+    }
+    let pairs: Vec<[V; 2]> = raw.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+    let (mut live, mut c, mut p) = (counts.indices / 3, 0usize, 0usize);
+    for (s, h) in steps.iter().enumerate() {
+        let (nc, np, removed) = h.unpack();
+        if removed > live - counts.base || np > 2 {
+            return Err(rs.invalid(HB * s, "a step removes past the base or has over two pairs"));
+        }
+        live -= removed;
+        let (Some(step_corners), true) = (corners.get(c..c + nc), p + np <= pairs.len()) else {
+            return Err(rs.invalid(HB * s, "a step names more corners or pairs than there are"));
+        };
+        for (k, rec) in step_corners.iter().enumerate() {
+            let v = rec.get();
+            if (v >> 1) as usize >= 3 * live || (v & 1) as usize >= np {
+                return Err(rc.invalid(CB * (c + k), "a corner record is out of range"));
+            }
+        }
+        c += nc;
+        p += np;
+    }
+    if live != counts.base || c != corners.len() || p != pairs.len() {
+        return Err(rs.invalid(0, "the steps do not add up to the records"));
+    }
+    Ok(Records {
+        indices,
+        steps,
+        corners,
+        pairs,
+    })
+}
+
+fn read_view(section: Section<'_>, vertices: usize, steps: usize) -> Result<ViewData, MrmError> {
+    let mut r = Reader::new(section);
+    let diagonal = r.f32()?;
+    if !(diagonal.is_finite() && diagonal > 0.0) {
+        return Err(r.invalid(0, "the diagonal is not finite and positive"));
+    }
+    let at = r.offset() - section.offset;
+    let moved = match r.u8()? {
+        1 => Moved::Narrow(r.items::<4, _>(steps, |b| {
+            [
+                u16::from_le_bytes([b[0], b[1]]),
+                u16::from_le_bytes([b[2], b[3]]),
+            ]
+        })?),
+        0 => Moved::Wide(r.items::<8, _>(steps, |b| {
+            [
+                u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+                u32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+            ]
+        })?),
+        _ => return Err(r.invalid(at as usize, "unknown vertex width")),
+    };
+    if (0..steps).any(|i| {
+        moved
+            .get(i)
+            .is_none_or(|m| m.iter().any(|&v| v as usize >= vertices))
+    }) {
+        return Err(r.invalid(
+            at as usize,
+            "a collapse names a vertex past the vertex table",
+        ));
+    }
+    let centre = r.items::<3, _>(steps, |b| b.map(|c| c as i8))?;
+    let at = (r.offset() - section.offset) as usize;
+    let radius = r.items::<2, _>(steps, u16::from_le_bytes)?;
+    let error = r.items::<2, _>(steps, u16::from_le_bytes)?;
+    let cone = r.items::<3, _>(steps, |b| b)?;
+    r.finish()?;
+    let bad = |x: &u16| {
+        let v = error_from_u16(*x);
+        !(v.is_finite() && v >= 0.0)
+    };
+    if radius.iter().any(bad) || error.iter().any(bad) {
+        return Err(r.invalid(at, "a bound is not finite"));
+    }
+    Ok(ViewData {
+        moved,
+        centre,
+        radius,
+        error,
+        cone,
+        diagonal,
+    })
+}

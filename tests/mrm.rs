@@ -1,0 +1,331 @@
+//! The `.mrm` file of a progressive mesh: round trips of every layout and attribute, and
+//! damaged files (truncated anywhere, bits flipped, counts and lengths changed with the
+//! checksums made to match, sections swapped or repeated) that must give an error naming a
+//! section and never panic. `MRM_MUTATIONS=100000 cargo test --release --test mrm` runs the
+//! long version.
+
+mod common;
+
+use bevy_aslod::mesh::IndexedMesh;
+use bevy_aslod::mrm::{self, FORMAT_VERSION, MrmError};
+use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+use bevy_aslod::refine::VariableMesh;
+use common::{grid, sphere, testdata_mesh};
+use glam::Vec2;
+
+fn build(mesh: &IndexedMesh, view: bool) -> ProgressiveMesh {
+    let options = BuildOptions::default().with_view_dependent(view);
+    ProgressiveMesh::build(mesh, &options).expect("test mesh builds")
+}
+
+/// A small sphere with normals, UVs, joints and weights (every optional section).
+fn small() -> IndexedMesh {
+    let mut mesh = sphere(8, 12, &[0.0, 0.02, -0.01], true);
+    let n = mesh.positions.len();
+    mesh.normals = Some(mesh.positions.iter().map(|p| p.normalize()).collect());
+    mesh.uvs = Some(
+        (0..n)
+            .map(|i| Vec2::new(i as f32 / n as f32, 0.5))
+            .collect(),
+    );
+    mesh.joints = Some((0..n).map(|i| [0, 1, (i % 3) as u16, 0]).collect());
+    mesh.weights = Some(vec![[0.5, 0.25, 0.25, 0.0]; n]);
+    mesh
+}
+
+#[test]
+fn every_layout_and_attribute_round_trips() {
+    let wide = grid(300, 230, &[0.0, 0.1, -0.05, 0.2, 0.0]);
+    assert!(
+        wide.positions.len() > usize::from(u16::MAX),
+        "a wide layout"
+    );
+    for (name, mesh, view) in [
+        ("small", small(), true),
+        ("small, no view data", small(), false),
+        ("cow", testdata_mesh("cow.obj"), true),
+        ("bunny", testdata_mesh("stanford-bunny.obj"), false),
+        ("wide grid", wide, true),
+    ] {
+        let pm = build(&mesh, view);
+        let bytes = mrm::write_progressive(&pm);
+        let back = mrm::read_progressive(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(back, pm, "{name}");
+        assert_eq!(
+            mrm::write_progressive(&back),
+            bytes,
+            "{name}: written the same again"
+        );
+        // The file is the mesh's memory plus a header: nothing is stored twice.
+        let overhead = bytes.len() as i64 - pm.memory_bytes() as i64;
+        assert!(
+            (0..600).contains(&overhead),
+            "{name}: {overhead} bytes over the mesh"
+        );
+    }
+}
+
+#[test]
+fn the_sections_are_listed_in_order_with_their_sizes() {
+    let pm = build(&small(), true);
+    let bytes = mrm::write_progressive(&pm);
+    let sections = mrm::sections(&bytes).unwrap();
+    let tags: Vec<&str> = sections.iter().map(|(t, _)| t.as_str()).collect();
+    assert_eq!(
+        tags,
+        [
+            "MESH", "POS", "NRM", "UV0", "JNT", "WGT", "IDX", "STEP", "CORN", "PAIR", "ERRS",
+            "VIEW"
+        ]
+    );
+    let n = pm.vertices().vertex_count() as u64;
+    assert_eq!(sections[1].1, 12 * n);
+    assert_eq!(
+        sections[6].1,
+        2 * 3 * pm.max_triangles() as u64,
+        "16-bit indices"
+    );
+}
+
+#[test]
+fn a_newer_version_or_another_file_is_refused_by_name() {
+    let mut bytes = mrm::write_progressive(&build(&small(), false));
+    bytes[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
+    let err = mrm::read_progressive(&bytes).unwrap_err();
+    assert_eq!(
+        err,
+        MrmError::NewerVersion {
+            file: FORMAT_VERSION + 1,
+            supported: FORMAT_VERSION
+        }
+    );
+    assert!(
+        err.to_string()
+            .contains(&format!("version {}", FORMAT_VERSION + 1))
+    );
+    assert_eq!(
+        mrm::read_progressive(b"PK\x03\x04 not a mesh at all"),
+        Err(MrmError::NotMrm)
+    );
+    assert!(mrm::read_progressive(&[]).is_err());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Damaged files.
+
+/// CRC-32 (IEEE), as the format uses.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// The section table of a well-formed file: (entry offset, data offset, length).
+fn table(bytes: &[u8]) -> Vec<(usize, usize, usize)> {
+    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    (0..n)
+        .map(|i| {
+            let e = 16 + 24 * i;
+            let off = u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize;
+            let len = u64::from_le_bytes(bytes[e + 16..e + 24].try_into().unwrap()) as usize;
+            (e, off, len)
+        })
+        .collect()
+}
+
+/// Makes every checksum match again (as a file changed on purpose would), where the table
+/// still describes sections inside the file.
+fn reseal(bytes: &mut [u8]) {
+    let Some(n) = bytes
+        .get(12..16)
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as usize)
+    else {
+        return;
+    };
+    let end = 16 + 24 * n;
+    if n > 64 || bytes.len() < end + 4 {
+        return;
+    }
+    for i in 0..n {
+        let e = 16 + 24 * i;
+        let off = u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap());
+        let len = u64::from_le_bytes(bytes[e + 16..e + 24].try_into().unwrap());
+        if let Some(data) = off
+            .checked_add(len)
+            .filter(|&x| x <= bytes.len() as u64)
+            .map(|x| &bytes[off as usize..x as usize])
+        {
+            let crc = crc32(data);
+            bytes[e + 4..e + 8].copy_from_slice(&crc.to_le_bytes());
+        }
+    }
+    let crc = crc32(&bytes[..end]);
+    bytes[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// A tiny xorshift generator: the mutations are the same on every run.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// One damaged copy of `good`: what kind of damage, and the bytes.
+fn mutate(good: &[u8], rng: &mut Rng) -> (&'static str, Vec<u8>) {
+    let sections = table(good);
+    let mut bytes = good.to_vec();
+    match rng.below(7) {
+        0 => {
+            // Truncated at a section boundary, one byte either side, or anywhere.
+            let (_, off, len) = sections[rng.below(sections.len())];
+            let cut = match rng.below(4) {
+                0 => off,
+                1 => off + len,
+                2 => (off + len).saturating_sub(1),
+                _ => rng.below(good.len()),
+            };
+            bytes.truncate(cut.min(good.len().saturating_sub(1)));
+            ("truncated", bytes)
+        }
+        1 => {
+            let i = rng.below(bytes.len());
+            bytes[i] ^= 1 << rng.below(8);
+            ("bit flip", bytes)
+        }
+        2 => {
+            // A length or offset in the table set to a huge or shifted value, resealed.
+            let (e, _, _) = sections[rng.below(sections.len())];
+            let field = e + 8 + 8 * rng.below(2);
+            let value: u64 = match rng.below(3) {
+                0 => u64::MAX - rng.below(1000) as u64,
+                1 => 1 << (32 + rng.below(30)),
+                _ => u64::from_le_bytes(bytes[field..field + 8].try_into().unwrap())
+                    .wrapping_add(rng.below(9) as u64)
+                    .wrapping_sub(4),
+            };
+            bytes[field..field + 8].copy_from_slice(&value.to_le_bytes());
+            reseal(&mut bytes);
+            ("table field changed", bytes)
+        }
+        3 => {
+            // A count in MESH (or any u32 in the first sections), huge or off by a little,
+            // resealed so only the contents' checks can find it.
+            let (_, off, len) = sections[rng.below(sections.len().min(3))];
+            let at = off + 4 * rng.below(len / 4);
+            let old = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+            let value = match rng.below(3) {
+                0 => u32::MAX - rng.below(100) as u32,
+                1 => old ^ (1 << rng.below(32)),
+                _ => old.wrapping_add(rng.below(5) as u32).wrapping_sub(2),
+            };
+            bytes[at..at + 4].copy_from_slice(&value.to_le_bytes());
+            reseal(&mut bytes);
+            ("count changed", bytes)
+        }
+        4 => {
+            // Any byte of the records changed, resealed: the structural checks alone.
+            let (_, off, len) = sections[6 + rng.below(sections.len() - 6)];
+            if len > 0 {
+                let at = off + rng.below(len);
+                bytes[at] = rng.next() as u8;
+            }
+            reseal(&mut bytes);
+            ("record changed", bytes)
+        }
+        5 => {
+            // Two table entries swapped (sections out of order), resealed.
+            let a = rng.below(sections.len());
+            let b = rng.below(sections.len());
+            let (ea, eb) = (sections[a].0, sections[b].0);
+            let entry_a = bytes[ea..ea + 24].to_vec();
+            let entry_b = bytes[eb..eb + 24].to_vec();
+            bytes[ea..ea + 24].copy_from_slice(&entry_b);
+            bytes[eb..eb + 24].copy_from_slice(&entry_a);
+            reseal(&mut bytes);
+            ("sections swapped", bytes)
+        }
+        _ => {
+            // A tag repeated in place of another, resealed.
+            let a = rng.below(sections.len());
+            let b = rng.below(sections.len());
+            let tag = bytes[sections[a].0..sections[a].0 + 4].to_vec();
+            let e = sections[b].0;
+            bytes[e..e + 4].copy_from_slice(&tag);
+            reseal(&mut bytes);
+            ("tag repeated", bytes)
+        }
+    }
+}
+
+/// A mesh read back from a damaged file that still passed every check: it must be usable
+/// without a panic by every level of a polygon cache and by the refinement's graph.
+fn exercise(pm: &ProgressiveMesh) {
+    let mut cache = PolygonCache::new(pm);
+    for level in (0..pm.level_count()).rev().step_by(7).chain(0..1) {
+        cache.set_level(pm, level);
+    }
+    if pm.has_view_data() {
+        let _ = VariableMesh::new(pm.clone());
+    }
+}
+
+#[test]
+fn damaged_files_are_errors_that_name_where() {
+    let mutations: usize = std::env::var("MRM_MUTATIONS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(if cfg!(debug_assertions) {
+            6_000
+        } else {
+            100_000
+        });
+    let good = mrm::write_progressive(&build(&small(), true));
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut kinds = std::collections::BTreeMap::<&str, (usize, usize)>::new();
+    for _ in 0..mutations {
+        let (kind, bytes) = mutate(&good, &mut rng);
+        let entry = kinds.entry(kind).or_default();
+        entry.0 += 1;
+        match mrm::read_progressive(&bytes) {
+            Ok(pm) => {
+                // Only a change that undid itself, or one the format cannot tell from a
+                // real mesh, reads: it must be a usable mesh.
+                exercise(&pm);
+            }
+            Err(e) => {
+                entry.1 += 1;
+                let text = e.to_string();
+                let named = matches!(e, MrmError::NotMrm | MrmError::NewerVersion { .. })
+                    || text.contains("byte ")
+                    || matches!(e, MrmError::MissingSection(_));
+                assert!(named, "{kind}: the error names no place: {text}");
+            }
+        }
+    }
+    for (kind, (tried, refused)) in &kinds {
+        println!("{kind}: {refused} of {tried} refused");
+        assert!(*tried > 0, "{kind} never tried");
+        // Without resealing, every damage is caught (by a checksum or a length at least).
+        if matches!(*kind, "truncated" | "bit flip") {
+            assert_eq!(refused, tried, "{kind}: a damaged file was read");
+        }
+    }
+}
