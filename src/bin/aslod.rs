@@ -3,6 +3,7 @@
 use bevy_aslod::distance::{Distance, DistanceOptions, MeshRef, mesh_distance};
 use bevy_aslod::mannequin::{MannequinOptions, generate};
 use bevy_aslod::mesh::{IndexedMesh, write_obj, write_obj_groups};
+use bevy_aslod::mrm;
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh, indexed_mesh_bytes};
 use bevy_aslod::refine::{self, Criteria, ScreenSpaceError, VariableMesh, View};
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh};
@@ -52,10 +53,23 @@ enum Command {
     },
     /// Compare our progressive mesh with meshoptimizer: build time and error per ratio.
     Compare(CompareArgs),
-    /// Print a mesh's counts, its progressive sequence and its memory use.
+    /// Print a mesh's counts, its progressive sequence and its memory use; for a `.mrm`
+    /// file, its sections and their sizes.
     Info {
+        /// Input mesh (.obj, .ply, .gltf, .glb) or baked file (.mrm).
+        input: PathBuf,
+    },
+    /// Build the whole mesh's progressive sequence, with the view-dependent data, and write
+    /// it as a `.mrm` file (one progressive mesh: regions and skins are not baked yet).
+    Bake {
         /// Input mesh (.obj, .ply, .gltf, .glb).
         input: PathBuf,
+        /// Output `.mrm` file.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Leave out the view-dependent data (about 7 bytes per triangle).
+        #[arg(long)]
+        no_view: bool,
     },
     /// Generate the procedural mannequin (ASLOD section 7): a skinned, animated binary glTF
     /// with 10 rigid and 9 deformable regions and the "Aerobics" loop.
@@ -166,6 +180,11 @@ fn main() -> ExitCode {
         } => extract(&input, triangles, error, &output),
         Command::Compare(args) => compare(&args),
         Command::Info { input } => info(&input),
+        Command::Bake {
+            input,
+            output,
+            no_view,
+        } => bake(&input, &output, !no_view),
         Command::Mannequin { output, cell_size } => mannequin(&output, cell_size),
     };
     match result {
@@ -374,7 +393,57 @@ fn assemble(
     (all, groups)
 }
 
+fn bake(input: &Path, output: &Path, view: bool) -> CliResult {
+    let mesh = load(input)?;
+    let start = Instant::now();
+    let pm = build_with(&mesh, &BuildOptions::default().with_view_dependent(view))?;
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let bytes = mrm::write_progressive(&pm);
+    std::fs::write(output, &bytes)?;
+    println!(
+        "{}: {} triangles, {} levels, built in {build_ms:.0} ms; {} bytes ({:.1} bytes/triangle)",
+        output.display(),
+        pm.max_triangles(),
+        pm.level_count(),
+        bytes.len(),
+        bytes.len() as f64 / pm.max_triangles().max(1) as f64
+    );
+    Ok(())
+}
+
+/// `info` for a `.mrm` file: its sections, then the mesh it holds (read and checked).
+fn info_mrm(input: &Path) -> CliResult {
+    let bytes = std::fs::read(input)?;
+    println!(
+        "{} ({} bytes, format version {})",
+        input.display(),
+        bytes.len(),
+        mrm::FORMAT_VERSION
+    );
+    for (tag, length) in mrm::sections(&bytes)? {
+        println!("  {tag:<4} {length:>12} bytes");
+    }
+    let start = Instant::now();
+    let pm = mrm::read_progressive(&bytes)?;
+    println!(
+        "  triangles {} / vertices {}, levels {} (base mesh {} triangles), view data {}; read in {:.1} ms",
+        pm.max_triangles(),
+        pm.vertices().vertex_count(),
+        pm.level_count(),
+        pm.min_triangles(),
+        if pm.has_view_data() { "yes" } else { "no" },
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(())
+}
+
 fn info(input: &Path) -> CliResult {
+    if input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mrm"))
+    {
+        return info_mrm(input);
+    }
     let mesh = load(input)?;
     let start = Instant::now();
     let pm = build(&mesh)?;
@@ -850,8 +919,9 @@ fn compare(args: &CompareArgs) -> CliResult {
 
 #[cfg(test)]
 mod tests {
-    use super::{Cli, Command, extract_view, pinched_edges};
+    use super::{Cli, Command, bake, extract_view, info, pinched_edges};
     use bevy_aslod::mesh::IndexedMesh;
+    use bevy_aslod::mrm;
     use clap::Parser;
     use glam::Vec3;
 
@@ -919,6 +989,32 @@ mod tests {
             .is_err()
         );
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn bake_writes_a_file_that_info_and_the_reader_accept() {
+        let cow = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shared/testdata/meshes/cow.obj"
+        );
+        let out = std::env::temp_dir().join(format!("aslod-bake-{}.mrm", std::process::id()));
+        let cli = Cli::parse_from(["aslod", "bake", cow, "-o", out.to_str().unwrap()]);
+        let Command::Bake {
+            input,
+            output,
+            no_view,
+        } = cli.command
+        else {
+            panic!("parsed as bake");
+        };
+        bake(&input, &output, !no_view).unwrap();
+        info(&out).unwrap();
+        let pm = mrm::read_progressive(&std::fs::read(&out).unwrap()).unwrap();
+        assert!(pm.has_view_data());
+        assert_eq!(pm.max_triangles(), 5804);
+        std::fs::write(&out, b"ASLODMRM").unwrap();
+        assert!(info(&out).unwrap_err().to_string().contains("header"));
+        std::fs::remove_file(&out).ok();
     }
 
     #[test]
