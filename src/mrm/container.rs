@@ -76,6 +76,10 @@ pub(crate) fn read<'a>(
     supported: u32,
     expected: &[([u8; 4], bool)],
 ) -> Result<Vec<Section<'a>>, MrmError> {
+    // A short file that does not even start like one is not an .mrm file.
+    if !file.iter().zip(MAGIC).all(|(a, b)| *a == b) {
+        return Err(MrmError::NotMrm);
+    }
     let header = file.get(..HEADER).ok_or(MrmError::Truncated {
         section: "header".into(),
         offset: 0,

@@ -1,7 +1,8 @@
 //! The `.mrm` file (Hoxha's MR-model): a multiresolution mesh baked once and loaded without
 //! rebuilding. **Partial:** a file holds one [`ProgressiveMesh`] (its vertex table with every
-//! attribute, its records, its simplification table and its view-dependent data); regions,
-//! the skin binding, a Bevy asset loader and the `aslod bake` tool are not written yet.
+//! attribute, its records, its simplification table and its view-dependent data), which
+//! `aslod bake` writes and `aslod info` lists; regions, the skin binding and a Bevy asset
+//! loader are not written yet.
 //!
 //! ```
 //! use bevy_aslod::mesh::IndexedMesh;
@@ -53,8 +54,12 @@
 //! [`MrmError::NewerVersion`]), both kinds of checksum, the order and contiguity of the
 //! sections, that every count fits its section (so nothing is allocated beyond what the
 //! file's size justifies), and the records themselves (every index and pair names a vertex,
-//! every step removes live triangles and rewrites corners of the triangles that stay), so a
-//! mesh read from any file is safe for every polygon cache and refinement.
+//! every step removes live triangles and rewrites corners of the triangles that stay, every
+//! stored bound is finite), so a mesh read from any file is memory-safe for every polygon
+//! cache and refinement. What is not re-derived: that the view data's bounds nest (a file
+//! whose bounds were edited refines crack-free but not monotonically, so
+//! [`ToleranceSearch`](crate::refine::ToleranceSearch) may then report a level over its
+//! count) and that the errors are the build's.
 
 mod container;
 mod progressive;

@@ -267,10 +267,14 @@ pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError
     let mut r = Reader::new(section(b"ERRS")?);
     let errors = r.items::<2, _>(step_count, u16::from_le_bytes)?;
     r.finish()?;
-    for (k, pair) in errors.windows(2).enumerate() {
-        let (a, b) = (error_from_u16(pair[0]), error_from_u16(pair[1]));
-        if !(a.is_finite() && b.is_finite() && a >= 0.0 && b >= a) {
-            return Err(r.invalid(2 * k, "the error table is not finite and monotone"));
+    for (k, &e) in errors.iter().enumerate() {
+        let e = error_from_u16(e);
+        let previous = k.checked_sub(1).map_or(0.0, |p| error_from_u16(errors[p]));
+        if !(e.is_finite() && e >= previous) {
+            return Err(r.invalid(
+                2 * k,
+                "the error table is not finite, positive and monotone",
+            ));
         }
     }
     let view = if has_view != 0 {
@@ -420,9 +424,10 @@ fn read_view(section: Section<'_>, vertices: usize, steps: usize) -> Result<View
     let error = r.items::<2, _>(steps, u16::from_le_bytes)?;
     let cone = r.items::<3, _>(steps, |b| b)?;
     r.finish()?;
+    // Finite in the mesh's units too: a radius times the diagonal must not overflow.
     let bad = |x: &u16| {
         let v = error_from_u16(*x);
-        !(v.is_finite() && v >= 0.0)
+        !(v.is_finite() && v >= 0.0 && (v * diagonal).is_finite())
     };
     if radius.iter().any(bad) || error.iter().any(bad) {
         return Err(r.invalid(at, "a bound is not finite"));

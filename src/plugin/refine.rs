@@ -83,8 +83,9 @@ impl ViewDependent {
 
 /// Marks the camera that view-dependent models refine for, active or not (Güdükbay et al.'s
 /// phantom camera: it may drive the refinement while another camera looks at the result).
-/// The first one found is used; without a render target of its own (an inactive camera),
-/// it refines for the viewport of the first active camera (or [`AslodViewport`](super::AslodViewport)). Without one, each model refines for the active 3D camera
+/// The first one found is used. Without a render target of its own (an inactive camera) it
+/// takes the viewport height of [`AslodViewport`](super::AslodViewport) when there is one,
+/// else of the first active camera; its projection is its own, so set its aspect ratio. Without one, each model refines for the active 3D camera
 /// that sees its bounds largest, so in split screen every model is as fine as its nearest
 /// view needs; a view that sees it smaller gets the same mesh.
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -124,7 +125,8 @@ pub(super) enum Goal {
     Full,
     /// No camera sees it: the coarsest level.
     Coarsest,
-    /// An orthographic camera (no screen-space error): the uniform level within the count.
+    /// An orthographic camera (no screen-space error): the uniform level within the count
+    /// (full detail without one).
     Uniform,
     /// Refine for this view (in the model's space), from this camera.
     Refine(View, Entity),
@@ -147,6 +149,8 @@ pub(super) struct FineState {
     /// The count of the last level that ended at the tolerance floor, when it did: what the
     /// model would use of a larger allocation.
     pub(super) floor_count: Option<usize>,
+    /// This frame's allocation was capped at [`max_useful`](Self::max_useful).
+    pub(super) capped: bool,
     /// Triangles per uniform level, for the orthographic fallback.
     level_counts: Vec<usize>,
     pub(super) report: Refinement,
@@ -165,8 +169,13 @@ impl FineState {
         let narrow = mesh.mesh().vertices().vertex_count() <= usize::from(u16::MAX);
         let any_view = View::perspective(Vec3::Z, Vec3::NEG_Z, Vec3::Y, 1.0, 1.0, 0.1, 1.0)
             .expect("a valid constant camera");
+        // Coarsest until the first allocation reaches it, like a region.
+        let mut cache = VariableCache::new(&mesh);
+        if let Err(e) = cache.update(&mesh, &LevelCut(usize::MAX), &any_view) {
+            warn!("a view-dependent model starts at full detail: {e}");
+        }
         Self {
-            cache: VariableCache::new(&mesh),
+            cache,
             level_counts: mesh.mesh().level_triangle_counts(),
             mesh,
             search: ToleranceSearch::default(),
@@ -185,10 +194,19 @@ impl FineState {
             goal: Goal::Keep,
             target: None,
             floor_count: None,
+            capped: false,
             report: Refinement::default(),
             any_view,
             warned_tolerance: false,
         }
+    }
+
+    /// New settings: the search and what it knew start over.
+    pub(super) fn set_settings(&mut self, settings: ViewDependent) {
+        self.settings = settings;
+        self.search = ToleranceSearch::default();
+        self.floor_count = None;
+        self.warned_tolerance = false;
     }
 
     /// Triangles shown.
@@ -277,9 +295,14 @@ impl FineState {
                         .map(|fit| {
                             report.updates = fit.updates;
                             report.tolerance_px = fit.tolerance_px;
-                            self.floor_count = (floor.is_some()
-                                && fit.tolerance_px <= floor.unwrap_or(0.0))
-                            .then_some(fit.triangles);
+                            // At the floor: what it needs. Above it under a capped
+                            // allocation: the cap, so that the next one grows by a quarter
+                            // (never back to uncapped and down again, a flicker).
+                            self.floor_count = match floor {
+                                Some(f) if fit.tolerance_px <= f => Some(fit.triangles),
+                                Some(_) if self.capped => Some(target as usize),
+                                _ => None,
+                            };
                         }),
                     None => {
                         let criteria = criteria

@@ -341,7 +341,7 @@ pub(super) fn sync_view_dependent(
                 if settings.is_changed()
                     && let Some(fine) = &mut instance.fine
                 {
-                    fine.settings = (*settings).clone();
+                    fine.set_settings((*settings).clone());
                 }
             }
             (true, None) => {
@@ -540,14 +540,6 @@ fn allocate(
             None => m.count_vertices() as u64 / 3,
         })
         .sum();
-    // View-dependent models without a budget are fixed cost, at last frame's count.
-    let tolerance_only: u64 = models
-        .iter()
-        .filter_map(|(i, ..)| i.fine.as_ref())
-        .filter(|f| !f.settings.budgeted)
-        .map(|f| f.triangle_count() as u64)
-        .sum();
-    let fixed_cost = u32::try_from(fixed_cost + tolerance_only).unwrap_or(u32::MAX);
 
     // Each model's regions fill one run of `inputs`, in query order, and the model notes
     // where its run starts (`SelectLod` reads its targets from the same run of `counts`, in
@@ -591,6 +583,11 @@ fn allocate(
                     full_detail,
                     out,
                 );
+                // A model with only a pixel tolerance is refined now: its count is this
+                // frame's fixed cost for the allocation.
+                if let Some(fine) = instance.fine.as_mut().filter(|f| !f.settings.budgeted) {
+                    fine.select();
+                }
                 continue;
             }
             region_inputs(
@@ -605,6 +602,15 @@ fn allocate(
         }
     };
     par_chunks(&mut jobs, fill);
+    drop(jobs);
+    // View-dependent models without a budget, refined above, are fixed cost.
+    let tolerance_only: u64 = models
+        .iter()
+        .filter_map(|(i, ..)| i.fine.as_ref())
+        .filter(|f| !f.settings.budgeted)
+        .map(|f| f.triangle_count() as u64)
+        .sum();
+    let fixed_cost = u32::try_from(fixed_cost + tolerance_only).unwrap_or(u32::MAX);
     stats.models = model_count;
     stats.regions = scratch.inputs.len();
     stats.fixed_cost = fixed_cost;
@@ -717,6 +723,7 @@ fn fine_input(
     } else {
         (pm.min_triangles(), fine.max_useful())
     };
+    fine.capped = !full_detail && max < pm.max_triangles();
     // Weighed by what the active cameras see, and what the camera it refines for sees.
     let area = if full_detail {
         0.0
@@ -854,7 +861,12 @@ fn select_lod(
                     .get(first)
                     .copied()
                     .filter(|_| this_frame && fine.settings.budgeted);
-                let shown = fine.select() as u64;
+                // Tolerance-only models were refined in `Allocate`.
+                let shown = if fine.settings.budgeted {
+                    fine.select()
+                } else {
+                    fine.triangle_count()
+                } as u64;
                 instance.shown = shown;
                 instance.settled = false;
                 triangles += shown;

@@ -154,6 +154,8 @@ impl ToleranceSearch {
         floor_px: f32,
     ) -> Result<BudgetFit, RefineError> {
         ScreenSpaceError::new(floor_px)?;
+        // A floor above the largest tolerance is the largest tolerance.
+        let floor_px = floor_px.min(MAX_TOLERANCE_PX);
         if self.max_updates == 0 {
             return Err(RefineError::InvalidCriterion(
                 "a tolerance search needs at least one update",
@@ -228,7 +230,13 @@ impl ToleranceSearch {
                     if b >= MAX_TOLERANCE_PX {
                         break;
                     }
-                    (b * 4.0).clamp(MIN_TOLERANCE_PX, MAX_TOLERANCE_PX)
+                    // From (near) zero, one pixel next: ×4 from there reaches the largest
+                    // tolerance in nine trials.
+                    if b < 0.25 {
+                        1.0
+                    } else {
+                        (b * 4.0).min(MAX_TOLERANCE_PX)
+                    }
                 }
                 _ => break,
             };

@@ -331,3 +331,38 @@ fn with_several_cameras_a_model_refines_for_the_one_that_sees_it_largest_or_the_
     app.world_mut().entity_mut(near).insert(RefineCamera);
     assert_eq!(refined_for(&mut app), Some(near));
 }
+
+#[test]
+fn a_tolerance_only_model_coming_into_view_never_takes_the_others_budget() {
+    let mut app = app(6_000);
+    let asset = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(cow());
+    let fine = model(&mut app, &asset, Vec3::ZERO);
+    app.world_mut()
+        .entity_mut(fine)
+        .insert(ViewDependent::tolerance(2.0));
+    model(&mut app, &asset, Vec3::new(12.0, 0.0, 0.0));
+    // Looking away first: the view-dependent model sits at its coarsest level.
+    let cam = camera(
+        &mut app,
+        Vec3::new(6.0, 2.0, 25.0),
+        Vec3::new(6.0, 2.0, 60.0),
+    );
+    for _ in 0..3 {
+        app.update();
+    }
+    *app.world_mut().get_mut::<Transform>(cam).unwrap() =
+        Transform::from_xyz(6.0, 2.0, 25.0).looking_at(Vec3::new(6.0, 0.0, 0.0), Vec3::Y);
+    for frame in 0..4 {
+        app.update();
+        let stats = *app.world().resource::<AslodStats>();
+        let shown = instance(&app, fine).triangle_count();
+        assert_eq!(
+            stats.fixed_cost as usize, shown,
+            "frame {frame}: this frame's count"
+        );
+        assert!(stats.triangles <= 6_000, "frame {frame}: {stats:?}");
+    }
+}
