@@ -110,6 +110,32 @@ fn a_newer_version_or_another_file_is_refused_by_name() {
     assert!(mrm::read_progressive(&[]).is_err());
 }
 
+/// A file of format version 1, baked by this crate from [`small`] (`MRM_WRITE_V1=1` rewrites
+/// it): it must keep loading, whatever later versions add.
+const V1: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/small_v1.mrm");
+
+#[test]
+fn a_version_1_file_still_loads() {
+    if std::env::var_os("MRM_WRITE_V1").is_some() && FORMAT_VERSION == 1 {
+        std::fs::write(V1, mrm::write_progressive(&build(&small(), true))).unwrap();
+    }
+    let bytes = std::fs::read(V1).expect("the committed version 1 file");
+    assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 1);
+    let pm = mrm::read_progressive(&bytes).expect("a version 1 file loads");
+    let n = small().positions.len();
+    assert_eq!(pm.vertices().vertex_count(), n);
+    let v = pm.vertices();
+    assert!(v.normals.is_some() && v.uvs.is_some() && v.joints.is_some() && v.weights.is_some());
+    assert!(pm.has_view_data());
+    // Every level is usable.
+    let mut cache = PolygonCache::new(&pm);
+    for level in 0..pm.level_count() {
+        cache.set_level(&pm, level);
+        assert_eq!(cache.indices().len(), 3 * pm.level_triangle_counts()[level]);
+    }
+    VariableMesh::new(pm).expect("its view data");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Damaged files.
 
