@@ -1,8 +1,9 @@
 //! The Silvretta example's terrain (ASLOD Figure 8): a ridged multifractal (Musgrave) over
-//! seeded value noise, the same on every run.
+//! seeded value noise, the same on every run. Without Bevy, so the `coarse_fine` bench shares it.
+#![allow(dead_code)]
 
-use bevy::prelude::*;
 use bevy_aslod::mesh::IndexedMesh;
+use glam::Vec3;
 
 /// Vertices along each side of the terrain: 260² quads, 135,200 triangles.
 pub const SIDE: u32 = 261;
@@ -52,26 +53,31 @@ fn terrain_height(x: f32, z: f32) -> f32 {
 
 /// The terrain: `SIDE`² vertices centred on the origin, with normals.
 pub fn terrain() -> IndexedMesh {
-    let half = (SIDE - 1) as f32 * SPACING * 0.5;
+    terrain_middle(SIDE)
+}
+
+/// The terrain's middle `side`² vertices (all of it for [`SIDE`]), with normals.
+pub fn terrain_middle(side: u32) -> IndexedMesh {
+    let half = (side - 1) as f32 * SPACING * 0.5;
     let at = |i: u32, j: u32| {
         let (x, z) = (i as f32 * SPACING - half, j as f32 * SPACING - half);
         Vec3::new(x, terrain_height(x, z), z)
     };
-    let mut positions = Vec::with_capacity((SIDE * SIDE) as usize);
+    let mut positions = Vec::with_capacity((side * side) as usize);
     let mut normals = Vec::with_capacity(positions.capacity());
-    for j in 0..SIDE {
-        for i in 0..SIDE {
+    for j in 0..side {
+        for i in 0..side {
             positions.push(at(i, j));
-            let dx = at((i + 1).min(SIDE - 1), j) - at(i.saturating_sub(1), j);
-            let dz = at(i, (j + 1).min(SIDE - 1)) - at(i, j.saturating_sub(1));
+            let dx = at((i + 1).min(side - 1), j) - at(i.saturating_sub(1), j);
+            let dz = at(i, (j + 1).min(side - 1)) - at(i, j.saturating_sub(1));
             normals.push(dz.cross(dx).normalize_or(Vec3::Y));
         }
     }
-    let mut indices = Vec::with_capacity(((SIDE - 1) * (SIDE - 1) * 6) as usize);
-    for j in 0..SIDE - 1 {
-        for i in 0..SIDE - 1 {
-            let v = j * SIDE + i;
-            indices.extend_from_slice(&[v, v + SIDE, v + 1, v + 1, v + SIDE, v + SIDE + 1]);
+    let mut indices = Vec::with_capacity(((side - 1) * (side - 1) * 6) as usize);
+    for j in 0..side - 1 {
+        for i in 0..side - 1 {
+            let v = j * side + i;
+            indices.extend_from_slice(&[v, v + side, v + 1, v + 1, v + side, v + side + 1]);
         }
     }
     let mut mesh = IndexedMesh::new(positions, indices);

@@ -152,10 +152,20 @@ fn view_bytes(view: &ViewData) -> Vec<u8> {
     out
 }
 
+/// The section `tag`, or the error that it is missing.
+fn section<'a>(sections: &[Section<'a>], tag: &[u8; 4]) -> Result<Section<'a>, MrmError> {
+    sections
+        .iter()
+        .find(|s| &s.tag == tag)
+        .copied()
+        .ok_or_else(|| MrmError::MissingSection(super::container::tag_name(*tag)))
+}
+
 /// Reads a progressive mesh from checked sections (see [`super::container::read`]).
 pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError> {
     let find = |tag: &[u8; 4]| sections.iter().find(|s| &s.tag == tag).copied();
-    let mesh = find(b"MESH").ok_or(MrmError::MissingSection("MESH".into()))?;
+    let section = |tag: &[u8; 4]| section(sections, tag);
+    let mesh = section(b"MESH")?;
     let mut r = Reader::new(mesh);
     let n = r.u32()? as usize;
     let [attributes, narrow, has_view, _] = r.array::<4>()?;
@@ -183,9 +193,6 @@ pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError
             return Err(r.invalid(4, "a section is missing or present against the flags"));
         }
     }
-    let section = |tag: &[u8; 4]| {
-        find(tag).ok_or_else(|| MrmError::MissingSection(super::container::tag_name(*tag)))
-    };
     let f32s = |b: [u8; 4]| f32::from_le_bytes(b);
     let read_vec3 = |tag: &[u8; 4]| -> Result<Vec<Vec3>, MrmError> {
         let mut r = Reader::new(section(tag)?);
@@ -324,13 +331,7 @@ where
     H: Header,
     C: Corner,
 {
-    let section = |tag: &[u8; 4]| {
-        sections
-            .iter()
-            .find(|s| &s.tag == tag)
-            .copied()
-            .ok_or_else(|| MrmError::MissingSection(super::container::tag_name(*tag)))
-    };
+    let section = |tag: &[u8; 4]| section(sections, tag);
     let mut r = Reader::new(section(b"IDX ")?);
     let indices = r.items::<VB, _>(counts.indices, &vertex)?;
     r.finish()?;

@@ -151,8 +151,6 @@ pub(super) struct FineState {
     pub(super) floor_count: Option<usize>,
     /// This frame's allocation was capped at [`max_useful`](Self::max_useful).
     pub(super) capped: bool,
-    /// Triangles per uniform level, for the orthographic fallback.
-    level_counts: Vec<usize>,
     pub(super) report: Refinement,
     /// Any view: the criteria that ignore it still take one.
     any_view: View,
@@ -164,9 +162,9 @@ impl FineState {
         mesh: Arc<VariableMesh>,
         entity: Entity,
         handle: Handle<Mesh>,
+        narrow: bool,
         settings: ViewDependent,
     ) -> Self {
-        let narrow = mesh.mesh().vertices().vertex_count() <= usize::from(u16::MAX);
         let any_view = View::perspective(Vec3::Z, Vec3::NEG_Z, Vec3::Y, 1.0, 1.0, 0.1, 1.0)
             .expect("a valid constant camera");
         // Coarsest until the first allocation reaches it, like a region.
@@ -176,7 +174,6 @@ impl FineState {
         }
         Self {
             cache,
-            level_counts: mesh.mesh().level_triangle_counts(),
             mesh,
             search: ToleranceSearch::default(),
             entity,
@@ -184,11 +181,7 @@ impl FineState {
             handle,
             staged: StagedIndices {
                 ready: false,
-                indices: if narrow {
-                    Indices::U16(Vec::new())
-                } else {
-                    Indices::U32(Vec::new())
-                },
+                indices: super::systems::empty_indices(narrow),
             },
             settings,
             goal: Goal::Keep,
@@ -269,11 +262,11 @@ impl FineState {
                 .map(|_| report.updates = 1),
             Goal::Uniform => {
                 let target = self.target.map_or(usize::MAX, |t| t as usize);
-                let level = self
-                    .level_counts
+                let counts = mesh.mesh().level_triangle_counts();
+                let level = counts
                     .iter()
                     .position(|&n| n <= target)
-                    .unwrap_or(self.level_counts.len().saturating_sub(1));
+                    .unwrap_or(counts.len().saturating_sub(1));
                 self.cache
                     .update(mesh, &LevelCut(level), &self.any_view)
                     .map(|_| report.updates = 1)

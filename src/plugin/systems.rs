@@ -162,24 +162,7 @@ pub(super) fn spawn_regions(
                 },
                 _ => (region.progressive_mesh().vertices().clone(), entity, false),
             };
-            // One degenerate triangle, in the width the levels use, until `Upload` writes the
-            // first level: the renderer gives the mesh its index allocation from the start.
-            let mut bevy_mesh = to_bevy_mesh(
-                &crate::mesh::IndexedMesh {
-                    joints: None,
-                    weights: None,
-                    ..mesh
-                },
-                &[],
-            );
-            bevy_mesh.insert_indices(if region.fits_u16() {
-                Indices::U16(vec![0; 3])
-            } else {
-                Indices::U32(vec![0; 3])
-            });
-            // The box of every vertex, as Bevy would compute it; the plugin keeps it, since
-            // level changes do not go through the asset's change events.
-            let aabb = bevy_mesh.compute_aabb().unwrap_or_default();
+            let (bevy_mesh, aabb) = placeholder_mesh(mesh, region.fits_u16());
             let handle = meshes.add(bevy_mesh);
             let mut child = commands.spawn((
                 Mesh3d(handle.clone()),
@@ -227,6 +210,29 @@ pub(super) fn spawn_regions(
             fine: None,
         });
     }
+}
+
+/// The Bevy mesh of a region or a variable-resolution level before its first level: the
+/// vertex table (joints and weights left out: the plugin skins on the CPU) and one degenerate
+/// triangle in the index width the levels use, so the renderer gives the mesh its index
+/// allocation from the start. With it, the box of every vertex, as Bevy would compute it: the
+/// plugin keeps it, since level changes do not go through the asset's change events.
+fn placeholder_mesh(vertices: crate::mesh::IndexedMesh, narrow: bool) -> (Mesh, Aabb) {
+    let mut mesh = to_bevy_mesh(
+        &crate::mesh::IndexedMesh {
+            joints: None,
+            weights: None,
+            ..vertices
+        },
+        &[],
+    );
+    mesh.insert_indices(if narrow {
+        Indices::U16(vec![0; 3])
+    } else {
+        Indices::U32(vec![0; 3])
+    });
+    let aabb = mesh.compute_aabb().unwrap_or_default();
+    (mesh, aabb)
 }
 
 /// The models whose regions took a material this frame (from any
@@ -376,20 +382,7 @@ pub(super) fn sync_view_dependent(
                 }
                 let Some(variable) = variable else { continue };
                 let narrow = variable.mesh().vertices().vertex_count() <= usize::from(u16::MAX);
-                let mut mesh = to_bevy_mesh(
-                    &crate::mesh::IndexedMesh {
-                        joints: None,
-                        weights: None,
-                        ..variable.mesh().vertices().clone()
-                    },
-                    &[],
-                );
-                mesh.insert_indices(if narrow {
-                    Indices::U16(vec![0; 3])
-                } else {
-                    Indices::U32(vec![0; 3])
-                });
-                let aabb = mesh.compute_aabb().unwrap_or_default();
+                let (mesh, aabb) = placeholder_mesh(variable.mesh().vertices().clone(), narrow);
                 let handle = meshes.add(mesh);
                 let child = commands
                     .spawn((
@@ -404,7 +397,13 @@ pub(super) fn sync_view_dependent(
                 for &region in &instance.region_entities {
                     commands.entity(region).try_insert(Visibility::Hidden);
                 }
-                instance.fine = Some(FineState::new(variable, child, handle, (*settings).clone()));
+                instance.fine = Some(FineState::new(
+                    variable,
+                    child,
+                    handle,
+                    narrow,
+                    (*settings).clone(),
+                ));
             }
         }
     }
@@ -574,15 +573,7 @@ fn allocate(
                 first: *offset,
             };
             if instance.fine.is_some() {
-                fine_input(
-                    instance,
-                    transform,
-                    *priority,
-                    cameras,
-                    views,
-                    full_detail,
-                    out,
-                );
+                fine_input(instance, transform, *priority, views, full_detail, out);
                 // A model with only a pixel tolerance is refined now: its count is this
                 // frame's fixed cost for the allocation.
                 if let Some(fine) = instance.fine.as_mut().filter(|f| !f.settings.budgeted) {
@@ -665,7 +656,6 @@ fn fine_input(
     instance: &mut MultiresInstance,
     transform: &GlobalTransform,
     priority: Option<&LodPriority>,
-    cameras: &[ProjectedAreaCamera],
     views: &[CameraView],
     full_detail: bool,
     out: &mut [RegionInput],
@@ -683,15 +673,19 @@ fn fine_input(
         return;
     };
     let marked = views.iter().find(|v| v.marked);
+    // What each camera that counts sees of it: the active ones and the marked one.
+    let seen = || {
+        views
+            .iter()
+            .filter(|v| v.active || marked.is_some_and(|m| m.entity == v.entity))
+            .filter_map(|v| Some((v, area_of(v.projector.as_ref()?))))
+    };
     fine.goal = if full_detail {
         Goal::Full
     } else {
         // The marked camera, else the active one that sees the model largest.
         let chosen = marked.or_else(|| {
-            views
-                .iter()
-                .filter(|v| v.active)
-                .filter_map(|v| Some((v, area_of(v.projector.as_ref()?))))
+            seen()
                 .filter(|(_, a)| *a > 0.0)
                 .max_by(|a, b| a.1.total_cmp(&b.1))
                 .map(|(v, _)| v)
@@ -728,11 +722,7 @@ fn fine_input(
     let area = if full_detail {
         0.0
     } else {
-        cameras
-            .iter()
-            .chain(marked.and_then(|v| v.projector.as_ref()))
-            .map(area_of)
-            .fold(0.0, f32::max)
+        seen().map(|(_, a)| a).fold(0.0, f32::max)
     };
     *input = RegionInput::from_area(
         area,
@@ -998,7 +988,7 @@ fn swap_staged(mesh: &mut Mesh, buffer: &mut Indices) -> bool {
 }
 
 /// An empty index buffer, 16-bit when `narrow`.
-fn empty_indices(narrow: bool) -> Indices {
+pub(super) fn empty_indices(narrow: bool) -> Indices {
     if narrow {
         Indices::U16(Vec::new())
     } else {

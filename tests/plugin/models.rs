@@ -23,7 +23,7 @@ fn asset() -> MultiresMesh {
     MultiresMesh::from_indexed(&mesh, &partition).expect("valid terrain")
 }
 
-fn app(budget: u32) -> App {
+pub(super) fn app(budget: u32) -> App {
     let mut app = App::new();
     app.add_plugins((MinimalPlugins, AssetPlugin::default(), TransformPlugin))
         .init_asset::<Mesh>()
@@ -47,7 +47,7 @@ fn spawn_camera(app: &mut App, at: Vec3) -> Entity {
         .id()
 }
 
-fn spawn_model(app: &mut App, handle: &Handle<MultiresMesh>, at: Vec3) -> Entity {
+pub(super) fn spawn_model(app: &mut App, handle: &Handle<MultiresMesh>, at: Vec3) -> Entity {
     let material = app
         .world_mut()
         .resource_mut::<Assets<StandardMaterial>>()

@@ -5,10 +5,12 @@ use bevy::prelude::*;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, AslodViewport, LodRegion, MultiresInstance, MultiresMesh,
-    MultiresModel, PartitionSpec, RefineCamera, VariableLevel, ViewDependent,
+    AslodStats, LodRegion, MultiresInstance, MultiresMesh, PartitionSpec, RefineCamera,
+    VariableLevel, ViewDependent,
 };
 use glam::Vec3;
+
+use super::models::{app, spawn_model as model};
 
 const MESHES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/testdata/meshes/");
 
@@ -24,16 +26,6 @@ fn cow() -> MultiresMesh {
         .expect("refinement data builds")
 }
 
-fn app(budget: u32) -> App {
-    let mut app = App::new();
-    app.add_plugins((MinimalPlugins, AssetPlugin::default(), TransformPlugin))
-        .init_asset::<Mesh>()
-        .init_asset::<StandardMaterial>()
-        .add_plugins(AslodPlugin::default().with_budget(budget))
-        .insert_resource(AslodViewport(Vec2::new(1280.0, 720.0)));
-    app
-}
-
 fn camera(app: &mut App, at: Vec3, target: Vec3) -> Entity {
     app.world_mut()
         .spawn((
@@ -47,18 +39,11 @@ fn camera(app: &mut App, at: Vec3, target: Vec3) -> Entity {
         .id()
 }
 
-fn model(app: &mut App, asset: &Handle<MultiresMesh>, at: Vec3) -> Entity {
-    let material = app
-        .world_mut()
-        .resource_mut::<Assets<StandardMaterial>>()
-        .add(StandardMaterial::default());
+/// The cow, added to the app's assets.
+fn add_cow(app: &mut App) -> Handle<MultiresMesh> {
     app.world_mut()
-        .spawn((
-            MultiresModel(asset.clone()),
-            MeshMaterial3d(material),
-            Transform::from_translation(at),
-        ))
-        .id()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(cow())
 }
 
 fn instance(app: &App, entity: Entity) -> &MultiresInstance {
@@ -79,10 +64,7 @@ fn index_count(app: &App, entity: Entity) -> usize {
 #[test]
 fn a_view_dependent_model_stays_within_its_allocation_along_a_moving_camera() {
     let mut app = app(3_000);
-    let asset = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
+    let asset = add_cow(&mut app);
     let fine = model(&mut app, &asset, Vec3::ZERO);
     app.world_mut()
         .entity_mut(fine)
@@ -155,10 +137,7 @@ fn a_view_dependent_model_stays_within_its_allocation_along_a_moving_camera() {
 #[test]
 fn a_view_dependent_model_out_of_view_goes_to_its_coarsest_level() {
     let mut app = app(100_000);
-    let asset = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
+    let asset = add_cow(&mut app);
     let fine = model(&mut app, &asset, Vec3::ZERO);
     app.world_mut()
         .entity_mut(fine)
@@ -206,10 +185,7 @@ fn a_view_dependent_model_out_of_view_goes_to_its_coarsest_level() {
 #[test]
 fn removing_view_dependent_returns_the_model_to_its_regions_without_a_leak() {
     let mut app = app(4_000);
-    let asset = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
+    let asset = add_cow(&mut app);
     let m = model(&mut app, &asset, Vec3::ZERO);
     camera(&mut app, Vec3::new(0.0, 2.0, 20.0), Vec3::ZERO);
     app.update();
@@ -280,10 +256,7 @@ fn removing_view_dependent_returns_the_model_to_its_regions_without_a_leak() {
 #[test]
 fn a_tolerance_only_model_counts_as_fixed_cost() {
     let mut app = app(5_000);
-    let asset = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
+    let asset = add_cow(&mut app);
     let fine = model(&mut app, &asset, Vec3::ZERO);
     app.world_mut()
         .entity_mut(fine)
@@ -309,10 +282,7 @@ fn a_tolerance_only_model_counts_as_fixed_cost() {
 #[test]
 fn with_several_cameras_a_model_refines_for_the_one_that_sees_it_largest_or_the_marked_one() {
     let mut app = app(100_000);
-    let asset = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
+    let asset = add_cow(&mut app);
     let fine = model(&mut app, &asset, Vec3::ZERO);
     app.world_mut()
         .entity_mut(fine)
@@ -335,10 +305,7 @@ fn with_several_cameras_a_model_refines_for_the_one_that_sees_it_largest_or_the_
 #[test]
 fn a_tolerance_only_model_coming_into_view_never_takes_the_others_budget() {
     let mut app = app(6_000);
-    let asset = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
+    let asset = add_cow(&mut app);
     let fine = model(&mut app, &asset, Vec3::ZERO);
     app.world_mut()
         .entity_mut(fine)
