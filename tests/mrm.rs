@@ -6,11 +6,13 @@
 
 mod common;
 
-use bevy_aslod::mesh::IndexedMesh;
-use bevy_aslod::mrm::{self, FORMAT_VERSION, MrmError};
+use bevy_aslod::mesh::{IndexedMesh, load_gltf_primitives};
+use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, FORMAT_VERSION, MrmError, MrmFile, MrmKind};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
 use bevy_aslod::refine::VariableMesh;
+use bevy_aslod::regions::{Partition, RegionCaches};
 use common::{grid, sphere, testdata_mesh};
+use glam::Mat4;
 use glam::Vec2;
 
 fn build(mesh: &IndexedMesh, view: bool) -> ProgressiveMesh {
@@ -110,15 +112,12 @@ fn a_newer_version_or_another_file_is_refused_by_name() {
     assert!(mrm::read_progressive(&[]).is_err());
 }
 
-/// A file of format version 1, baked by this crate from [`small`] (`MRM_WRITE_V1=1` rewrites
-/// it): it must keep loading, whatever later versions add.
+/// A file of format version 1, baked by this crate from [`small`]: it must keep loading,
+/// whatever later versions add.
 const V1: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/small_v1.mrm");
 
 #[test]
 fn a_version_1_file_still_loads() {
-    if std::env::var_os("MRM_WRITE_V1").is_some() && FORMAT_VERSION == 1 {
-        std::fs::write(V1, mrm::write_progressive(&build(&small(), true))).unwrap();
-    }
     let bytes = std::fs::read(V1).expect("the committed version 1 file");
     assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 1);
     let pm = mrm::read_progressive(&bytes).expect("a version 1 file loads");
@@ -155,47 +154,65 @@ fn crc32(bytes: &[u8]) -> u32 {
     !c
 }
 
-/// The section table of a well-formed file: (entry offset, data offset, length).
-fn table(bytes: &[u8]) -> Vec<(usize, usize, usize)> {
-    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+/// The section table of the well-formed container at `start`: (entry offset, data offset,
+/// length), absolute.
+fn table(bytes: &[u8], start: usize) -> Vec<(usize, usize, usize)> {
+    let n = u32::from_le_bytes(bytes[start + 12..start + 16].try_into().unwrap()) as usize;
     (0..n)
         .map(|i| {
-            let e = 16 + 24 * i;
+            let e = start + 16 + 24 * i;
             let off = u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize;
             let len = u64::from_le_bytes(bytes[e + 16..e + 24].try_into().unwrap()) as usize;
-            (e, off, len)
+            (e, start + off, len)
         })
         .collect()
 }
 
-/// Makes every checksum match again (as a file changed on purpose would), where the table
-/// still describes sections inside the file.
-fn reseal(bytes: &mut [u8]) {
+/// Where the containers of a well-formed file start: the file itself and every container
+/// nested in a section (each starts with the magic number), innermost last.
+fn containers(bytes: &[u8]) -> Vec<usize> {
+    (0..bytes.len().saturating_sub(7))
+        .filter(|&i| &bytes[i..i + 8] == b"ASLODMRM")
+        .collect()
+}
+
+/// Makes every checksum of the container at `start` match again (as a file changed on
+/// purpose would), where its table still describes sections inside the file.
+fn reseal_at(bytes: &mut [u8], start: usize) {
     let Some(n) = bytes
-        .get(12..16)
+        .get(start + 12..start + 16)
         .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as usize)
     else {
         return;
     };
-    let end = 16 + 24 * n;
+    let end = start + 16 + 24 * n;
     if n > 64 || bytes.len() < end + 4 {
         return;
     }
     for i in 0..n {
-        let e = 16 + 24 * i;
+        let e = start + 16 + 24 * i;
         let off = u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap());
         let len = u64::from_le_bytes(bytes[e + 16..e + 24].try_into().unwrap());
         if let Some(data) = off
-            .checked_add(len)
-            .filter(|&x| x <= bytes.len() as u64)
-            .map(|x| &bytes[off as usize..x as usize])
+            .checked_add(start as u64)
+            .and_then(|o| Some((o, o.checked_add(len)?)))
+            .filter(|&(_, x)| x <= bytes.len() as u64)
+            .map(|(o, x)| &bytes[o as usize..x as usize])
         {
             let crc = crc32(data);
             bytes[e + 4..e + 8].copy_from_slice(&crc.to_le_bytes());
         }
     }
-    let crc = crc32(&bytes[..end]);
+    let crc = crc32(&bytes[start..end]);
     bytes[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// Reseals every container, the innermost first (a nested container's checksums are part
+/// of its parent's section).
+fn reseal(bytes: &mut [u8], starts: &[usize]) {
+    for &start in starts.iter().rev() {
+        reseal_at(bytes, start);
+    }
 }
 
 /// A tiny xorshift generator: the mutations are the same on every run.
@@ -214,11 +231,13 @@ impl Rng {
     }
 }
 
-/// One damaged copy of `good`: what kind of damage, and the bytes.
-fn mutate(good: &[u8], rng: &mut Rng) -> (&'static str, Vec<u8>) {
-    let sections = table(good);
+/// One damaged copy of `good` (whose containers start at `starts`): what kind of damage,
+/// and the bytes. Every kind but truncations and bit flips picks one container and reseals.
+fn mutate(good: &[u8], starts: &[usize], rng: &mut Rng) -> (&'static str, Vec<u8>) {
+    let start = starts[rng.below(starts.len())];
+    let sections = table(good, start);
     let mut bytes = good.to_vec();
-    match rng.below(7) {
+    let kind = match rng.below(7) {
         0 => {
             // Truncated at a section boundary, one byte either side, or anywhere.
             let (_, off, len) = sections[rng.below(sections.len())];
@@ -229,15 +248,15 @@ fn mutate(good: &[u8], rng: &mut Rng) -> (&'static str, Vec<u8>) {
                 _ => rng.below(good.len()),
             };
             bytes.truncate(cut.min(good.len().saturating_sub(1)));
-            ("truncated", bytes)
+            return ("truncated", bytes);
         }
         1 => {
             let i = rng.below(bytes.len());
             bytes[i] ^= 1 << rng.below(8);
-            ("bit flip", bytes)
+            return ("bit flip", bytes);
         }
         2 => {
-            // A length or offset in the table set to a huge or shifted value, resealed.
+            // A length or offset in the table set to a huge or shifted value.
             let (e, _, _) = sections[rng.below(sections.len())];
             let field = e + 8 + 8 * rng.below(2);
             let value: u64 = match rng.below(3) {
@@ -248,36 +267,35 @@ fn mutate(good: &[u8], rng: &mut Rng) -> (&'static str, Vec<u8>) {
                     .wrapping_sub(4),
             };
             bytes[field..field + 8].copy_from_slice(&value.to_le_bytes());
-            reseal(&mut bytes);
-            ("table field changed", bytes)
+            "table field changed"
         }
         3 => {
-            // A count in MESH (or any u32 in the first sections), huge or off by a little,
-            // resealed so only the contents' checks can find it.
+            // A count in a header (or any u32 in the first sections), huge or off by a
+            // little.
             let (_, off, len) = sections[rng.below(sections.len().min(3))];
-            let at = off + 4 * rng.below(len / 4);
-            let old = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
-            let value = match rng.below(3) {
-                0 => u32::MAX - rng.below(100) as u32,
-                1 => old ^ (1 << rng.below(32)),
-                _ => old.wrapping_add(rng.below(5) as u32).wrapping_sub(2),
-            };
-            bytes[at..at + 4].copy_from_slice(&value.to_le_bytes());
-            reseal(&mut bytes);
-            ("count changed", bytes)
+            if len >= 4 {
+                let at = off + 4 * rng.below(len / 4);
+                let old = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+                let value = match rng.below(3) {
+                    0 => u32::MAX - rng.below(100) as u32,
+                    1 => old ^ (1 << rng.below(32)),
+                    _ => old.wrapping_add(rng.below(5) as u32).wrapping_sub(2),
+                };
+                bytes[at..at + 4].copy_from_slice(&value.to_le_bytes());
+            }
+            "count changed"
         }
         4 => {
-            // Any byte of the records changed, resealed: the structural checks alone.
-            let (_, off, len) = sections[6 + rng.below(sections.len() - 6)];
+            // Any byte of any section changed: the structural checks alone.
+            let (_, off, len) = sections[rng.below(sections.len())];
             if len > 0 {
                 let at = off + rng.below(len);
                 bytes[at] = rng.next() as u8;
             }
-            reseal(&mut bytes);
-            ("record changed", bytes)
+            "record changed"
         }
         5 => {
-            // Two table entries swapped (sections out of order), resealed.
+            // Two table entries swapped (sections out of order).
             let a = rng.below(sections.len());
             let b = rng.below(sections.len());
             let (ea, eb) = (sections[a].0, sections[b].0);
@@ -285,20 +303,20 @@ fn mutate(good: &[u8], rng: &mut Rng) -> (&'static str, Vec<u8>) {
             let entry_b = bytes[eb..eb + 24].to_vec();
             bytes[ea..ea + 24].copy_from_slice(&entry_b);
             bytes[eb..eb + 24].copy_from_slice(&entry_a);
-            reseal(&mut bytes);
-            ("sections swapped", bytes)
+            "sections swapped"
         }
         _ => {
-            // A tag repeated in place of another, resealed.
+            // A tag repeated in place of another.
             let a = rng.below(sections.len());
             let b = rng.below(sections.len());
             let tag = bytes[sections[a].0..sections[a].0 + 4].to_vec();
             let e = sections[b].0;
             bytes[e..e + 4].copy_from_slice(&tag);
-            reseal(&mut bytes);
-            ("tag repeated", bytes)
+            "tag repeated"
         }
-    }
+    };
+    reseal(&mut bytes, starts);
+    (kind, bytes)
 }
 
 /// A mesh read back from a damaged file that still passed every check: it must be usable
@@ -313,37 +331,62 @@ fn exercise(pm: &ProgressiveMesh) {
     }
 }
 
-#[test]
-fn damaged_files_are_errors_that_name_where() {
-    let mutations: usize = std::env::var("MRM_MUTATIONS")
+/// Assets read back from a damaged file that passed every check: every region must take
+/// any level and write its triangles without a panic, in any order.
+fn exercise_assets(file: &MrmFile, rng: &mut Rng) {
+    for (_, baked) in &file.meshes {
+        let regions = &baked.regions;
+        let mut caches = RegionCaches::new(regions);
+        let mut out = Vec::new();
+        for _ in 0..3 {
+            for r in 0..regions.regions().len() {
+                let max = regions.regions()[r].max_triangles();
+                caches.set_triangle_count(regions, r, rng.below(max + 1));
+            }
+            for r in 0..regions.regions().len() {
+                caches.write_global_indices(regions, r, &mut out);
+            }
+        }
+        if let Some(pm) = &baked.variable {
+            exercise(pm);
+        }
+    }
+}
+
+/// Checks that a refused file's error names where (a section and an offset).
+fn assert_named(kind: &str, e: &MrmError) {
+    let text = e.to_string();
+    let named = matches!(e, MrmError::NotMrm | MrmError::NewerVersion { .. })
+        || text.contains("byte ")
+        || matches!(e, MrmError::MissingSection(_));
+    assert!(named, "{kind}: the error names no place: {text}");
+}
+
+fn mutations() -> usize {
+    std::env::var("MRM_MUTATIONS")
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(if cfg!(debug_assertions) {
             6_000
         } else {
             100_000
-        });
-    let good = mrm::write_progressive(&build(&small(), true));
+        })
+}
+
+/// Runs `mutations` damaged copies of `good` through `read`, and prints what was refused.
+fn damage(good: &[u8], mut read: impl FnMut(&[u8], &mut Rng) -> Result<(), MrmError>) {
+    let starts = containers(good);
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
     let mut kinds = std::collections::BTreeMap::<&str, (usize, usize)>::new();
-    for _ in 0..mutations {
-        let (kind, bytes) = mutate(&good, &mut rng);
+    for _ in 0..mutations() {
+        let (kind, bytes) = mutate(good, &starts, &mut rng);
         let entry = kinds.entry(kind).or_default();
         entry.0 += 1;
-        match mrm::read_progressive(&bytes) {
-            Ok(pm) => {
-                // Only a change that undid itself, or one the format cannot tell from a
-                // real mesh, reads: it must be a usable mesh.
-                exercise(&pm);
-            }
-            Err(e) => {
-                entry.1 += 1;
-                let text = e.to_string();
-                let named = matches!(e, MrmError::NotMrm | MrmError::NewerVersion { .. })
-                    || text.contains("byte ")
-                    || matches!(e, MrmError::MissingSection(_));
-                assert!(named, "{kind}: the error names no place: {text}");
-            }
+        // Only a change that undid itself, or one the format cannot tell from a real mesh,
+        // reads: `read` must find it usable.
+        if let Err(e) = read(&bytes, &mut rng) {
+            entry.1 += 1;
+            assert_named(kind, &e);
         }
     }
     for (kind, (tried, refused)) in &kinds {
@@ -354,4 +397,126 @@ fn damaged_files_are_errors_that_name_where() {
             assert_eq!(refused, tried, "{kind}: a damaged file was read");
         }
     }
+}
+
+#[test]
+fn damaged_files_are_errors_that_name_where() {
+    let good = mrm::write_progressive(&build(&small(), true));
+    damage(&good, |bytes, _| {
+        mrm::read_progressive(bytes).map(|pm| exercise(&pm))
+    });
+}
+
+#[test]
+fn damaged_asset_files_are_errors_that_name_where() {
+    let good = mrm::write(&small_assets());
+    assert!(containers(&good).len() > 8, "nested containers");
+    damage(&good, |bytes, rng| {
+        mrm::read(bytes).map(|file| exercise_assets(&file, rng))
+    });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Assets.
+
+fn build_info(name: &str, partition: &str, options: BuildOptions) -> BuildInfo {
+    BuildInfo {
+        source_name: name.into(),
+        source_hash: mrm::source_hash(name.as_bytes()),
+        partition: partition.into(),
+        writer: "tests/mrm.rs".into(),
+        rigid_delta: None,
+        options,
+    }
+}
+
+/// Two small assets: the sphere in clusters with refinement data, and skinned.
+fn small_assets() -> MrmFile {
+    let mesh = small();
+    let options = BuildOptions::default().with_view_dependent(true);
+    let partition = Partition::clusters(&mesh, 4).unwrap();
+    let plain = BakedMesh::build(&mesh, &partition, &options).unwrap();
+    // Bone 0 holds the bottom, bone 1 the top, and a band blends them.
+    let mut skinned = mesh.clone();
+    let (joints, weights) = skinned
+        .positions
+        .iter()
+        .map(|p| match p.y {
+            y if y < -0.3 => ([0, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
+            y if y > 0.3 => ([1, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
+            _ => ([0, 1, 2, 0], [0.45, 0.45, 0.1, 0.0]),
+        })
+        .unzip();
+    skinned.joints = Some(joints);
+    skinned.weights = Some(weights);
+    let names = vec!["root".into(), "a".into(), "b".into()];
+    let skinned = BakedMesh::build_skinned(&skinned, &[Mat4::IDENTITY; 3], names, 0.01).unwrap();
+    assert!(skinned.skin.is_some() && skinned.regions.regions().len() > 1);
+    MrmFile {
+        build: build_info("small", "clusters 4", options),
+        meshes: vec![
+            ("Mesh0/Primitive0".into(), plain),
+            ("Mesh1/Primitive0".into(), skinned),
+        ],
+    }
+}
+
+#[test]
+fn assets_round_trip_field_for_field() {
+    let mut files = vec![small_assets()];
+    for name in ["cow.obj", "fandisk.obj", "spot.obj", "stanford-bunny.obj"] {
+        let mesh = testdata_mesh(name);
+        let partition = Partition::clusters(&mesh, 16).unwrap();
+        let options = BuildOptions::default().with_view_dependent(name == "cow.obj");
+        let baked = BakedMesh::build(&mesh, &partition, &options).unwrap();
+        files.push(MrmFile {
+            build: build_info(name, "clusters 16", options),
+            meshes: vec![(name.into(), baked)],
+        });
+    }
+    let robot = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/testdata/characters/RobotExpressive.glb"
+    );
+    let (primitives, skins) =
+        load_gltf_primitives(std::path::Path::new(robot)).expect("RobotExpressive");
+    let mut meshes = Vec::new();
+    for p in primitives {
+        let baked = match p.skin {
+            Some(s) => BakedMesh::build_skinned(
+                &p.mesh,
+                &skins[s].inverse_bind_matrices,
+                skins[s].joint_names.clone(),
+                0.01,
+            ),
+            None => BakedMesh::build(
+                &p.mesh,
+                &Partition::clusters(&p.mesh, 4).unwrap(),
+                &BuildOptions::default(),
+            ),
+        };
+        meshes.push((p.key, baked.unwrap()));
+    }
+    assert!(meshes.len() > 1 && meshes.iter().any(|(_, m)| m.skin.is_some()));
+    files.push(MrmFile {
+        build: build_info("RobotExpressive.glb", "skin", BuildOptions::default()),
+        meshes,
+    });
+    for file in &files {
+        let name = &file.build.source_name;
+        let bytes = mrm::write(file);
+        let back = mrm::read(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(back == *file, "{name}: read back differs");
+        assert_eq!(mrm::write(&back), bytes, "{name}: written the same again");
+        assert_eq!(mrm::kind(&bytes), Ok(MrmKind::Assets));
+        assert!(mrm::read_progressive(&bytes).is_err());
+    }
+}
+
+#[test]
+fn a_progressive_file_is_not_read_as_assets() {
+    let bytes = mrm::write_progressive(&build(&small(), false));
+    assert_eq!(mrm::kind(&bytes), Ok(MrmKind::Progressive));
+    let err = mrm::read(&bytes).unwrap_err();
+    assert!(err.to_string().contains("progressive"), "{err}");
 }

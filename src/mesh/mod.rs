@@ -15,7 +15,9 @@ mod ply;
 mod weld;
 
 pub use error::{MeshError, MeshResult};
-pub use gltf_import::{GltfImport, GltfSkinInfo, load_gltf, load_gltf_slice};
+pub use gltf_import::{
+    GltfImport, GltfPrimitive, GltfSkinInfo, load_gltf, load_gltf_primitives, load_gltf_slice,
+};
 pub use obj::{load_obj, parse_obj, write_obj, write_obj_groups};
 pub use ply::{load_ply, parse_ply};
 pub use weld::{WeldMap, weld_positions};

@@ -35,6 +35,9 @@ pub(crate) fn crc32(bytes: &[u8]) -> u32 {
     })
 }
 
+/// Sections to write: each tag with its bytes.
+pub(crate) type Sections = Vec<([u8; 4], Vec<u8>)>;
+
 /// Writes a file: the header, the table, its checksum, then each section's bytes.
 pub(crate) fn write(version: u32, sections: &[([u8; 4], Vec<u8>)]) -> Vec<u8> {
     let table_end = HEADER + ENTRY * sections.len() + 4;
@@ -70,8 +73,32 @@ pub(crate) struct Section<'a> {
 /// The sections of a file, checked: the magic, a version this reader knows, the table's
 /// checksum, sections that lie one after the other to the end of the file, each with its
 /// checksum, and tags in the order `expected` lists them (each at most once; those marked
-/// required present).
+/// required present). `base` is where `file` starts in the file on disk (a container nested
+/// in another one's section), for the offsets in errors and sections.
 pub(crate) fn read<'a>(
+    file: &'a [u8],
+    base: u64,
+    supported: u32,
+    expected: &[([u8; 4], bool)],
+) -> Result<Vec<Section<'a>>, MrmError> {
+    let mut sections = read_local(file, supported, expected).map_err(|e| e.shifted(base))?;
+    for s in &mut sections {
+        s.offset += base;
+    }
+    Ok(sections)
+}
+
+/// The version of a file that starts with the magic number, and the tag of its first
+/// section (all zero when it has none); `None` for anything shorter.
+pub(crate) fn peek(file: &[u8]) -> Option<(u32, [u8; 4])> {
+    let version = u32::from_le_bytes(file.get(8..12)?.try_into().ok()?);
+    let tag = file
+        .get(16..20)
+        .map_or([0; 4], |t| t.try_into().unwrap_or([0; 4]));
+    Some((version, tag))
+}
+
+fn read_local<'a>(
     file: &'a [u8],
     supported: u32,
     expected: &[([u8; 4], bool)],
@@ -217,6 +244,11 @@ impl<'a> Reader<'a> {
         Self { section, at: 0 }
     }
 
+    /// The file offset of the section's first byte.
+    pub(crate) fn start(&self) -> u64 {
+        self.section.offset
+    }
+
     /// The file offset of the next byte.
     pub(crate) fn offset(&self) -> u64 {
         self.section.offset + self.at as u64
@@ -259,6 +291,22 @@ impl<'a> Reader<'a> {
 
     pub(crate) fn f32(&mut self) -> Result<f32, MrmError> {
         Ok(f32::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn u64(&mut self) -> Result<u64, MrmError> {
+        Ok(u64::from_le_bytes(self.array()?))
+    }
+
+    pub(crate) fn f64(&mut self) -> Result<f64, MrmError> {
+        Ok(f64::from_le_bytes(self.array()?))
+    }
+
+    /// A string: its length in bytes (`u32`), then UTF-8.
+    pub(crate) fn string(&mut self) -> Result<String, MrmError> {
+        let at = self.at;
+        let n = self.u32()? as usize;
+        let bytes = self.bytes(n)?;
+        String::from_utf8(bytes.to_vec()).map_err(|_| self.invalid(at, "a string is not UTF-8"))
     }
 
     pub(crate) fn array<const N: usize>(&mut self) -> Result<[u8; N], MrmError> {

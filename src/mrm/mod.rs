@@ -61,14 +61,177 @@
 //! [`ToleranceSearch`](crate::refine::ToleranceSearch) may then report a level over its
 //! count) and that the errors are the build's.
 
+mod asset;
 mod container;
 mod progressive;
 
-use crate::multires::ProgressiveMesh;
+use crate::budget::Obb;
+use crate::mesh::MeshError;
+use crate::multires::{BuildOptions, ProgressiveMesh};
+use crate::regions::{RegionError, RegionMesh};
+use crate::skin::{SkinError, SkinRegionKind};
+use glam::Mat4;
 use thiserror::Error;
 
-/// The format version this crate writes and the newest it reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The format version this crate writes and the newest it reads. Version 1 files hold a
+/// progressive mesh only; they still load.
+pub const FORMAT_VERSION: u32 = 2;
+
+/// Everything a multiresolution asset holds, without Bevy: what an `.mrm` file stores per
+/// entry, and what the plugin's `MultiresMesh` is made from without building anything.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedMesh {
+    /// The regions with their progressive sequences, borders and fronts.
+    pub regions: RegionMesh,
+    /// One box per region, in region order (what the budget projects).
+    pub obbs: Vec<Obb>,
+    /// The skeleton binding of a skinned asset.
+    pub skin: Option<BakedSkin>,
+    /// The whole mesh as one progressive mesh with view-dependent data, for refinement.
+    pub variable: Option<ProgressiveMesh>,
+}
+
+/// The skeleton binding of a skinned [`BakedMesh`]. The per-vertex influences are the
+/// source's joints and weights (in the regions' vertex tables), normalised again at load.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedSkin {
+    /// Per region: rigid on one bone, or deformable between two.
+    pub kinds: Vec<SkinRegionKind>,
+    /// One inverse bind matrix per joint.
+    pub inverse_bindposes: Vec<Mat4>,
+    /// The joints' names, in joint order, when the source named them (empty otherwise):
+    /// what pairs a baked skin with the skeleton of the scene that shows it.
+    pub joint_names: Vec<String>,
+    /// Vertices with more than two influences.
+    pub more_than_two: usize,
+    /// Vertices whose weights were normalised.
+    pub normalised: usize,
+}
+
+/// How a file's assets were built, and from what.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildInfo {
+    /// The source file's name (no directory).
+    pub source_name: String,
+    /// FNV-1a (64 bits) of the source file's bytes ([`source_hash`]): a tool can tell
+    /// whether a baked file is stale.
+    pub source_hash: u64,
+    /// How the regions were cut, as the baking tool describes it (for example `clusters 16`).
+    pub partition: String,
+    /// The tool and crate version that wrote the file.
+    pub writer: String,
+    /// The rigid threshold δ of skinned assets.
+    pub rigid_delta: Option<f32>,
+    /// The build options.
+    pub options: BuildOptions,
+}
+
+/// A `.mrm` file of assets: how they were built, and each one under its key (for a glTF
+/// scene, Bevy's label of the primitive, such as `Mesh0/Primitive0`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MrmFile {
+    /// How the assets were built.
+    pub build: BuildInfo,
+    /// The assets, each under a unique, non-empty key.
+    pub meshes: Vec<(String, BakedMesh)>,
+}
+
+/// What a file holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MrmKind {
+    /// One progressive mesh ([`read_progressive`]); every version 1 file.
+    Progressive,
+    /// Assets ([`read`]).
+    Assets,
+}
+
+/// What can go wrong when building a [`BakedMesh`].
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum BakeError {
+    /// The source mesh is invalid.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// Partitioning or building the regions failed.
+    #[error(transparent)]
+    Region(#[from] RegionError),
+    /// The skin's influences are invalid.
+    #[error(transparent)]
+    Skin(#[from] SkinError),
+    /// A skinned build was asked of a mesh without joints or weights.
+    #[error("the mesh has no joints or weights (JOINTS_0/WEIGHTS_0): it is not skinned")]
+    NotSkinned,
+    /// An inverse bind matrix has a NaN or infinite entry.
+    #[error("inverse bind matrix {joint} is not finite")]
+    NonFiniteBindpose {
+        /// The joint.
+        joint: usize,
+    },
+}
+
+/// FNV-1a, 64 bits, of `bytes`: the source hash of [`BuildInfo`].
+#[must_use]
+pub fn source_hash(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// The `.mrm` bytes of a file of assets.
+#[must_use]
+pub fn write(file: &MrmFile) -> Vec<u8> {
+    asset::write(file)
+}
+
+/// Reads a file of assets, checking all of it (see the module docs).
+///
+/// # Errors
+/// An [`MrmError`] naming the section and byte offset of the first problem found;
+/// [`MrmError::Invalid`] for a progressive-mesh file (read it with [`read_progressive`]).
+pub fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
+    match kind(bytes)? {
+        MrmKind::Assets => asset::read(bytes),
+        MrmKind::Progressive => Err(MrmError::Invalid {
+            section: "MESH".into(),
+            offset: 16,
+            what: "the file holds a progressive mesh, not assets",
+        }),
+    }
+}
+
+/// Whether a file holds a progressive mesh or assets, from its header and first section's
+/// tag (nothing else is checked: reading does that).
+///
+/// # Errors
+/// [`MrmError::NotMrm`], [`MrmError::NewerVersion`], [`MrmError::Truncated`] for a file
+/// shorter than its header, [`MrmError::Invalid`] when the first section is neither kind's.
+pub fn kind(bytes: &[u8]) -> Result<MrmKind, MrmError> {
+    if !bytes.iter().zip(container::MAGIC).all(|(a, b)| *a == b) {
+        return Err(MrmError::NotMrm);
+    }
+    let Some((version, tag)) = container::peek(bytes) else {
+        return Err(MrmError::Truncated {
+            section: "header".into(),
+            offset: 0,
+            needed: 16,
+        });
+    };
+    if version > FORMAT_VERSION {
+        return Err(MrmError::NewerVersion {
+            file: version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    match &tag {
+        b"MESH" => Ok(MrmKind::Progressive),
+        b"SRC " if version >= 2 => Ok(MrmKind::Assets),
+        _ => Err(MrmError::Invalid {
+            section: container::tag_name(tag),
+            offset: 16,
+            what: "the first section is neither a mesh's nor assets'",
+        }),
+    }
+}
 
 /// Why a `.mrm` file cannot be read. Every variant about the contents names the section and
 /// the byte offset in the file.
@@ -121,6 +284,42 @@ pub enum MrmError {
     },
 }
 
+impl MrmError {
+    /// The same error in a container that starts `base` bytes into the file.
+    fn shifted(self, base: u64) -> Self {
+        match self {
+            Self::Truncated {
+                section,
+                offset,
+                needed,
+            } => Self::Truncated {
+                section,
+                offset: offset + base,
+                needed,
+            },
+            Self::Checksum { section, offset } => Self::Checksum {
+                section,
+                offset: offset + base,
+            },
+            Self::Invalid {
+                section,
+                offset,
+                what,
+            } => Self::Invalid {
+                section,
+                offset: offset + base,
+                what,
+            },
+            Self::NotMrm if base > 0 => Self::Invalid {
+                section: "nested container".into(),
+                offset: base,
+                what: "no ASLODMRM magic number",
+            },
+            other => other,
+        }
+    }
+}
+
 /// The `.mrm` bytes of a progressive mesh.
 #[must_use]
 pub fn write_progressive(mesh: &ProgressiveMesh) -> Vec<u8> {
@@ -132,7 +331,7 @@ pub fn write_progressive(mesh: &ProgressiveMesh) -> Vec<u8> {
 /// # Errors
 /// An [`MrmError`] naming the section and byte offset of the first problem found.
 pub fn read_progressive(bytes: &[u8]) -> Result<ProgressiveMesh, MrmError> {
-    let sections = container::read(bytes, FORMAT_VERSION, &progressive::SECTIONS)?;
+    let sections = container::read(bytes, 0, FORMAT_VERSION, &progressive::SECTIONS)?;
     progressive::read(&sections)
 }
 
@@ -142,7 +341,11 @@ pub fn read_progressive(bytes: &[u8]) -> Result<ProgressiveMesh, MrmError> {
 /// # Errors
 /// As [`read_progressive`], for the container.
 pub fn sections(bytes: &[u8]) -> Result<Vec<(String, u64)>, MrmError> {
-    let sections = container::read(bytes, FORMAT_VERSION, &progressive::SECTIONS)?;
+    let expected: &[([u8; 4], bool)] = match kind(bytes)? {
+        MrmKind::Progressive => &progressive::SECTIONS,
+        MrmKind::Assets => &asset::FILE_SECTIONS,
+    };
+    let sections = container::read(bytes, 0, FORMAT_VERSION, expected)?;
     Ok(sections
         .iter()
         .map(|s| (container::tag_name(s.tag), s.bytes.len() as u64))

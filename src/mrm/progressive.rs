@@ -1,6 +1,6 @@
 //! A [`ProgressiveMesh`] as `.mrm` sections, and back, checked.
 
-use super::container::{Reader, Section};
+use super::container::{Reader, Section, Sections};
 use super::{FORMAT_VERSION, MrmError};
 use crate::mesh::IndexedMesh;
 use crate::multires::ProgressiveMesh;
@@ -39,13 +39,30 @@ fn vec3s(v: &[Vec3]) -> Vec<u8> {
 /// The file bytes of `mesh`.
 pub(super) fn write(mesh: &ProgressiveMesh) -> Vec<u8> {
     let v = &mesh.vertices;
-    let n = v.positions.len();
-    let flag = |on: bool, bit: u8| if on { bit } else { 0 };
-    let attributes = flag(v.normals.is_some(), NORMALS)
-        | flag(v.uvs.is_some(), UVS)
-        | flag(v.joints.is_some(), JOINTS)
-        | flag(v.weights.is_some(), WEIGHTS);
-    let (narrow, index_count, steps, corners, pairs) = match &mesh.records {
+    let (attributes, vertex_sections) = vertex_sections(v);
+    let (narrow, index_count, steps, corners, pairs) = layout_counts(&mesh.records);
+    let mut head = Vec::with_capacity(32);
+    head.extend_from_slice(&(v.positions.len() as u32).to_le_bytes());
+    head.extend_from_slice(&[attributes, narrow, u8::from(mesh.view.is_some()), 0]);
+    for x in [
+        mesh.base_triangles as usize,
+        index_count,
+        steps,
+        corners,
+        pairs,
+    ] {
+        head.extend_from_slice(&(x as u32).to_le_bytes());
+    }
+    let mut sections = vec![(*b"MESH", head)];
+    sections.extend(vertex_sections);
+    record_sections(&mut sections, mesh);
+    super::container::write(FORMAT_VERSION, &sections)
+}
+
+/// Whether the records are narrow (1) or wide (0), and their index, step, corner and pair
+/// counts.
+pub(super) fn layout_counts(records: &Layout) -> (u8, usize, usize, usize, usize) {
+    match records {
         Layout::Narrow(r) => (
             1u8,
             r.indices.len(),
@@ -60,20 +77,17 @@ pub(super) fn write(mesh: &ProgressiveMesh) -> Vec<u8> {
             r.corners.len(),
             r.pairs.len(),
         ),
-    };
-    let mut head = Vec::with_capacity(32);
-    head.extend_from_slice(&(n as u32).to_le_bytes());
-    head.extend_from_slice(&[attributes, narrow, u8::from(mesh.view.is_some()), 0]);
-    for x in [
-        mesh.base_triangles as usize,
-        index_count,
-        steps,
-        corners,
-        pairs,
-    ] {
-        head.extend_from_slice(&(x as u32).to_le_bytes());
     }
-    let mut sections = vec![(*b"MESH", head), (*b"POS ", vec3s(&v.positions))];
+}
+
+/// The attribute flags of a vertex table and its sections (`POS ` to `WGT `).
+pub(super) fn vertex_sections(v: &IndexedMesh) -> (u8, Sections) {
+    let flag = |on: bool, bit: u8| if on { bit } else { 0 };
+    let attributes = flag(v.normals.is_some(), NORMALS)
+        | flag(v.uvs.is_some(), UVS)
+        | flag(v.joints.is_some(), JOINTS)
+        | flag(v.weights.is_some(), WEIGHTS);
+    let mut sections = vec![(*b"POS ", vec3s(&v.positions))];
     if let Some(normals) = &v.normals {
         sections.push((*b"NRM ", vec3s(normals)));
     }
@@ -92,20 +106,24 @@ pub(super) fn write(mesh: &ProgressiveMesh) -> Vec<u8> {
         let bytes = weights.iter().flatten().flat_map(|w| w.to_le_bytes());
         sections.push((*b"WGT ", bytes.collect()));
     }
+    (attributes, sections)
+}
+
+/// The sections of a mesh's records, error table and view data (`IDX ` to `VIEW`).
+pub(super) fn record_sections(sections: &mut Sections, mesh: &ProgressiveMesh) {
     match &mesh.records {
-        Layout::Narrow(r) => records(&mut sections, r, |x: u16| x.to_le_bytes().to_vec()),
-        Layout::Wide(r) => records(&mut sections, r, |x: u32| x.to_le_bytes().to_vec()),
+        Layout::Narrow(r) => records(sections, r, |x: u16| x.to_le_bytes().to_vec()),
+        Layout::Wide(r) => records(sections, r, |x: u32| x.to_le_bytes().to_vec()),
     }
     let errors = mesh.errors.iter().flat_map(|e| e.to_le_bytes()).collect();
     sections.push((*b"ERRS", errors));
     if let Some(view) = &mesh.view {
         sections.push((*b"VIEW", view_bytes(view)));
     }
-    super::container::write(FORMAT_VERSION, &sections)
 }
 
 fn records<V: Copy, H: Header + Into<u32>, C: Corner>(
-    sections: &mut Vec<([u8; 4], Vec<u8>)>,
+    sections: &mut Sections,
     r: &Records<V, H, C>,
     bytes: impl Fn(V) -> Vec<u8>,
 ) {
@@ -153,7 +171,10 @@ fn view_bytes(view: &ViewData) -> Vec<u8> {
 }
 
 /// The section `tag`, or the error that it is missing.
-fn section<'a>(sections: &[Section<'a>], tag: &[u8; 4]) -> Result<Section<'a>, MrmError> {
+pub(super) fn section<'a>(
+    sections: &[Section<'a>],
+    tag: &[u8; 4],
+) -> Result<Section<'a>, MrmError> {
     sections
         .iter()
         .find(|s| &s.tag == tag)
@@ -163,23 +184,102 @@ fn section<'a>(sections: &[Section<'a>], tag: &[u8; 4]) -> Result<Section<'a>, M
 
 /// Reads a progressive mesh from checked sections (see [`super::container::read`]).
 pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError> {
-    let find = |tag: &[u8; 4]| sections.iter().find(|s| &s.tag == tag).copied();
-    let section = |tag: &[u8; 4]| section(sections, tag);
-    let mesh = section(b"MESH")?;
+    let mesh = section(sections, b"MESH")?;
     let mut r = Reader::new(mesh);
     let n = r.u32()? as usize;
     let [attributes, narrow, has_view, _] = r.array::<4>()?;
-    let base = r.u32()? as usize;
-    let index_count = r.u32()? as usize;
-    let step_count = r.u32()? as usize;
-    let corner_count = r.u32()? as usize;
-    let pair_count = r.u32()? as usize;
+    let counts = Counts {
+        vertices: n,
+        base: r.u32()? as usize,
+        indices: r.u32()? as usize,
+        steps: r.u32()? as usize,
+        corners: r.u32()? as usize,
+        pairs: r.u32()? as usize,
+    };
     r.finish()?;
-    if attributes & !(NORMALS | UVS | JOINTS | WEIGHTS) != 0 || narrow > 1 || has_view > 1 {
+    let vertices = read_vertices(sections, &r, n, attributes)?;
+    read_mesh(sections, &r, vertices, &counts, narrow, has_view)
+}
+
+/// The records, error table and view data of a mesh over `vertices`, as `counts`, `narrow`
+/// and `has_view` declare them in the header `r` read (errors about those point there).
+pub(super) fn read_mesh(
+    sections: &[Section<'_>],
+    r: &Reader<'_>,
+    vertices: IndexedMesh,
+    counts: &Counts,
+    narrow: u8,
+    has_view: u8,
+) -> Result<ProgressiveMesh, MrmError> {
+    if narrow > 1 || has_view > 1 {
         return Err(r.invalid(4, "unknown flags"));
     }
-    if !index_count.is_multiple_of(3) || base > index_count / 3 {
-        return Err(r.invalid(12, "the index count or base triangle count is inconsistent"));
+    if !counts.indices.is_multiple_of(3) || counts.base > counts.indices / 3 {
+        return Err(r.invalid(4, "the index count or base triangle count is inconsistent"));
+    }
+    if sections.iter().any(|s| &s.tag == b"VIEW") != (has_view != 0) {
+        return Err(r.invalid(4, "a section is missing or present against the flags"));
+    }
+    let records = if narrow == 1 {
+        Layout::Narrow(read_records::<u16, u16, [u8; 3], 2, 2, 3>(
+            sections,
+            counts,
+            u16::from_le_bytes,
+            u16::from_le_bytes,
+            |b| <[u8; 3]>::pack(u32::from_le_bytes([b[0], b[1], b[2], 0])),
+        )?)
+    } else {
+        Layout::Wide(read_records::<u32, u32, u32, 4, 4, 4>(
+            sections,
+            counts,
+            u32::from_le_bytes,
+            u32::from_le_bytes,
+            u32::from_le_bytes,
+        )?)
+    };
+    let mut r = Reader::new(section(sections, b"ERRS")?);
+    let errors = r.items::<2, _>(counts.steps, u16::from_le_bytes)?;
+    r.finish()?;
+    for (k, &e) in errors.iter().enumerate() {
+        let e = error_from_u16(e);
+        let previous = k.checked_sub(1).map_or(0.0, |p| error_from_u16(errors[p]));
+        if !(e.is_finite() && e >= previous) {
+            return Err(r.invalid(
+                2 * k,
+                "the error table is not finite, positive and monotone",
+            ));
+        }
+    }
+    let view = if has_view != 0 {
+        Some(read_view(
+            section(sections, b"VIEW")?,
+            counts.vertices,
+            counts.steps,
+        )?)
+    } else {
+        None
+    };
+    Ok(ProgressiveMesh {
+        vertices,
+        base_triangles: counts.base as u32,
+        records,
+        errors,
+        view,
+    })
+}
+
+/// The vertex table (`POS ` to `WGT `) of `n` vertices with the attributes `attributes`
+/// flags, from the header `r` read.
+pub(super) fn read_vertices(
+    sections: &[Section<'_>],
+    r: &Reader<'_>,
+    n: usize,
+    attributes: u8,
+) -> Result<IndexedMesh, MrmError> {
+    let find = |tag: &[u8; 4]| sections.iter().any(|s| &s.tag == tag);
+    let section = |tag: &[u8; 4]| section(sections, tag);
+    if attributes & !(NORMALS | UVS | JOINTS | WEIGHTS) != 0 {
+        return Err(r.invalid(4, "unknown flags"));
     }
     // Each optional section is there exactly when its flag says so.
     for (tag, on) in [
@@ -187,9 +287,8 @@ pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError
         (b"UV0 ", attributes & UVS != 0),
         (b"JNT ", attributes & JOINTS != 0),
         (b"WGT ", attributes & WEIGHTS != 0),
-        (b"VIEW", has_view != 0),
     ] {
-        if find(tag).is_some() != on {
+        if find(tag) != on {
             return Err(r.invalid(4, "a section is missing or present against the flags"));
         }
     }
@@ -246,73 +345,24 @@ pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError
             Ok(v)
         })
         .transpose()?;
-    let counts = Counts {
-        vertices: n,
-        base,
-        indices: index_count,
-        steps: step_count,
-        corners: corner_count,
-        pairs: pair_count,
-    };
-    let records = if narrow == 1 {
-        Layout::Narrow(read_records::<u16, u16, [u8; 3], 2, 2, 3>(
-            sections,
-            &counts,
-            u16::from_le_bytes,
-            u16::from_le_bytes,
-            |b| <[u8; 3]>::pack(u32::from_le_bytes([b[0], b[1], b[2], 0])),
-        )?)
-    } else {
-        Layout::Wide(read_records::<u32, u32, u32, 4, 4, 4>(
-            sections,
-            &counts,
-            u32::from_le_bytes,
-            u32::from_le_bytes,
-            u32::from_le_bytes,
-        )?)
-    };
-    let mut r = Reader::new(section(b"ERRS")?);
-    let errors = r.items::<2, _>(step_count, u16::from_le_bytes)?;
-    r.finish()?;
-    for (k, &e) in errors.iter().enumerate() {
-        let e = error_from_u16(e);
-        let previous = k.checked_sub(1).map_or(0.0, |p| error_from_u16(errors[p]));
-        if !(e.is_finite() && e >= previous) {
-            return Err(r.invalid(
-                2 * k,
-                "the error table is not finite, positive and monotone",
-            ));
-        }
-    }
-    let view = if has_view != 0 {
-        Some(read_view(section(b"VIEW")?, n, step_count)?)
-    } else {
-        None
-    };
-    Ok(ProgressiveMesh {
-        vertices: IndexedMesh {
-            positions,
-            normals,
-            uvs,
-            joints,
-            weights,
-            indices: Vec::new(),
-        },
-        base_triangles: base as u32,
-        records,
-        errors,
-        view,
+    Ok(IndexedMesh {
+        positions,
+        normals,
+        uvs,
+        joints,
+        weights,
+        indices: Vec::new(),
     })
 }
 
-/// The counts the `MESH` section declares.
-struct Counts {
-    vertices: usize,
-    base: usize,
-    indices: usize,
-    steps: usize,
-    corners: usize,
-    pairs: usize,
+/// The counts a mesh header declares.
+pub(super) struct Counts {
+    pub(super) vertices: usize,
+    pub(super) base: usize,
+    pub(super) indices: usize,
+    pub(super) steps: usize,
+    pub(super) corners: usize,
+    pub(super) pairs: usize,
 }
 
 /// The records of one layout, checked so that every cache and refinement walk stays in

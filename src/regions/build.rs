@@ -146,6 +146,7 @@ impl RegionMesh {
             partition: Partition::from_region_of(region_of, count),
             regions,
             vertex_count: mesh.vertex_count(),
+            built: true,
         })
     }
 }

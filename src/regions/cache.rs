@@ -202,11 +202,12 @@ impl Scratch {
     fn write<I: CacheIndex, J: CacheIndex>(
         &mut self,
         data: &super::Region,
+        built: bool,
         indices: &[J],
         out: &mut Vec<I>,
     ) {
         debug_assert!(
-            only_fin_prone_triangles_meet(data, indices),
+            !built || only_fin_prone_triangles_meet(data, indices),
             "a triangle lost its area, or border triangles met outside the fin-prone ones"
         );
         let prone = active(&data.fin_prone, indices.len() / 3);
@@ -445,8 +446,8 @@ impl RegionCaches {
         let data = &mesh.regions()[region];
         let scratch = &mut self.scratch;
         match &self.caches[region] {
-            Cache::Narrow(cache) => scratch.write(data, cache.indices(), out),
-            Cache::Wide(cache) => scratch.write(data, cache.indices(), out),
+            Cache::Narrow(cache) => scratch.write(data, mesh.built, cache.indices(), out),
+            Cache::Wide(cache) => scratch.write(data, mesh.built, cache.indices(), out),
         }
         self.dirty[region] = false;
         out.len() / 3

@@ -63,6 +63,7 @@ mod util;
 
 pub use cache::RegionCaches;
 pub use partition::{GridPlane, Partition};
+pub(crate) use util::subset;
 
 use crate::mesh::MeshError;
 use crate::multires::ProgressiveMesh;
@@ -248,14 +249,74 @@ impl Region {
 
 /// A partitioned multiresolution mesh: one progressive sequence per region, sharing the
 /// source mesh's vertices.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct RegionMesh {
     partition: Partition,
     regions: Vec<Region>,
     vertex_count: usize,
+    /// Built here, not read from a file: the fin-prone lists are the builder's, so debug
+    /// builds check that no other border triangles meet. A file's are only range-checked.
+    pub(crate) built: bool,
+}
+
+/// Equal regions, however they were made.
+impl PartialEq for RegionMesh {
+    fn eq(&self, other: &Self) -> bool {
+        self.partition == other.partition
+            && self.regions == other.regions
+            && self.vertex_count == other.vertex_count
+    }
 }
 
 impl RegionMesh {
+    /// Regions read from a baked file (checked by its reader).
+    pub(crate) fn from_parts(
+        partition: Partition,
+        regions: Vec<Region>,
+        vertex_count: usize,
+    ) -> Self {
+        Self {
+            partition,
+            regions,
+            vertex_count,
+            built: false,
+        }
+    }
+
+    /// The source mesh's vertex table (every attribute, no indices), put back together from
+    /// the regions' local tables. A vertex no region's triangles use is left at zero.
+    #[must_use]
+    pub fn source_vertices(&self) -> crate::mesh::IndexedMesh {
+        fn scatter<T: Copy + Default>(
+            regions: &[Region],
+            n: usize,
+            field: impl Fn(&crate::mesh::IndexedMesh) -> Option<&Vec<T>>,
+        ) -> Option<Vec<T>> {
+            // Every region has the same attributes: the first one says which.
+            field(regions.first()?.mesh.vertices())?;
+            let mut out = vec![T::default(); n];
+            for r in regions {
+                let local = field(r.mesh.vertices())?;
+                for (&g, &x) in r.global.iter().zip(local) {
+                    if let Some(slot) = out.get_mut(g as usize) {
+                        *slot = x;
+                    }
+                }
+            }
+            Some(out)
+        }
+        let n = self.vertex_count;
+        let r = &self.regions;
+        crate::mesh::IndexedMesh {
+            positions: scatter(r, n, |m| Some(&m.positions)).unwrap_or_default(),
+            normals: scatter(r, n, |m| m.normals.as_ref()),
+            uvs: scatter(r, n, |m| m.uvs.as_ref()),
+            joints: scatter(r, n, |m| m.joints.as_ref()),
+            weights: scatter(r, n, |m| m.weights.as_ref()),
+            indices: Vec::new(),
+        }
+    }
+
     /// The regions, indexed by region id.
     #[inline]
     #[must_use]

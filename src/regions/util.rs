@@ -20,7 +20,7 @@ pub(super) fn unite(parent: &mut [u32], a: u32, b: u32) {
 }
 
 /// The attributes of `vertices`, in that order, with no triangles.
-pub(super) fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
+pub(crate) fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
     fn pick<T: Copy>(v: &Option<Vec<T>>, vertices: &[u32]) -> Option<Vec<T>> {
         v.as_ref()
             .map(|v| vertices.iter().map(|&i| v[i as usize]).collect())

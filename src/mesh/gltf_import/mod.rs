@@ -17,6 +17,7 @@ mod flatten;
 mod scene;
 
 pub use flatten::GltfImport;
+use glam::Mat4;
 pub use scene::GltfSkinInfo;
 
 use super::{MeshError, MeshResult};
@@ -97,4 +98,71 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> MeshResult<Gltf
     let mut import = builder.finish(skins);
     import.report = import.mesh.validate()?;
     Ok(import)
+}
+
+/// One triangle primitive of a glTF file, on its own, in its mesh's space: what Bevy's glTF
+/// loader makes one `Mesh` asset of.
+#[derive(Clone, Debug)]
+pub struct GltfPrimitive {
+    /// Bevy's label of the primitive's mesh asset: `Mesh{m}/Primitive{p}`, by document index.
+    pub key: String,
+    /// The primitive, validated; joints index [`skin`](Self::skin)'s joint list.
+    pub mesh: crate::mesh::IndexedMesh,
+    /// The skin of the first node that shows the mesh (document order), when one does.
+    pub skin: Option<usize>,
+}
+
+/// Reads every triangle primitive of a `.gltf` or `.glb` file separately (see
+/// [`load_gltf_slice`] for what is read and how), each in its own mesh space, with the
+/// file's skins. Primitives without triangles (points, lines) are left out.
+///
+/// # Errors
+/// As [`load_gltf`], naming the primitive for errors of its own.
+pub fn load_gltf_primitives(path: &Path) -> MeshResult<(Vec<GltfPrimitive>, Vec<GltfSkinInfo>)> {
+    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+    let (json, bin) = if bytes.starts_with(b"glTF") {
+        split_glb(&bytes)?
+    } else {
+        (&bytes[..], None)
+    };
+    let end = json.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+    let document = parse_document(&json[..end])?;
+    let buffers = load_buffers(&document, bin, path.parent())?;
+    let data = Data { buffers };
+    let skins = document
+        .skins()
+        .map(|skin| read_skin(&data, &skin))
+        .collect::<MeshResult<Vec<_>>>()?;
+    let instances = collect_instances(&document)?;
+    let mut out = Vec::new();
+    for mesh in document.meshes() {
+        let skin = instances
+            .iter()
+            .find(|i| i.mesh.index() == mesh.index())
+            .and_then(|i| i.skin);
+        let instance = scene::Instance {
+            mesh: mesh.clone(),
+            skin,
+            transform: Mat4::IDENTITY,
+        };
+        for primitive in mesh.primitives() {
+            let key = format!("Mesh{}/Primitive{}", mesh.index(), primitive.index());
+            let mut builder = Builder::new(&skins, std::slice::from_ref(&instance));
+            builder.add_primitive(&data, &primitive, &instance)?;
+            let mut import = builder.finish(Vec::new());
+            if import.mesh.indices.is_empty() {
+                continue;
+            }
+            import
+                .mesh
+                .validate()
+                .map_err(|e| gltf_error(format!("{key}: {e}")))?;
+            out.push(GltfPrimitive {
+                key,
+                mesh: import.mesh,
+                skin,
+            });
+        }
+    }
+    Ok((out, skins))
 }

@@ -16,6 +16,8 @@ pub struct GltfSkinInfo {
     pub joints: Vec<usize>,
     /// One inverse bind matrix per joint (identity when the file gives none).
     pub inverse_bind_matrices: Vec<Mat4>,
+    /// The joint nodes' names, in joint order (empty for an unnamed node).
+    pub joint_names: Vec<String>,
 }
 
 pub(super) fn read_skin(data: &Data<'_>, skin: &gltf::Skin<'_>) -> MeshResult<GltfSkinInfo> {
@@ -49,10 +51,15 @@ pub(super) fn read_skin(data: &Data<'_>, skin: &gltf::Skin<'_>) -> MeshResult<Gl
             matrices
         }
     };
+    let joint_names = skin
+        .joints()
+        .map(|node| node.name().unwrap_or_default().to_owned())
+        .collect();
     Ok(GltfSkinInfo {
         name: skin.name().map(str::to_owned),
         joints,
         inverse_bind_matrices,
+        joint_names,
     })
 }
 

@@ -1,0 +1,649 @@
+//! Whole multiresolution assets ([`BakedMesh`]) as `.mrm` files, and back, checked.
+
+use super::container::{self, Reader, Section};
+use super::progressive::{self, Counts, section};
+use super::{BakeError, BakedMesh, BakedSkin, BuildInfo, FORMAT_VERSION, MrmError, MrmFile};
+use crate::budget::Obb;
+use crate::multires::BuildOptions;
+use crate::regions::{FrontEvent, Partition, Region, RegionMesh, subset};
+use crate::skin::SkinRegionKind;
+use glam::{Mat3, Mat4, Vec3};
+
+/// The sections of a file of assets, in order.
+pub(super) const FILE_SECTIONS: [([u8; 4], bool); 3] =
+    [(*b"SRC ", true), (*b"KEYS", true), (*b"ASET", true)];
+
+/// The sections of one asset (a container nested in `ASET`), in order.
+const ENTRY_SECTIONS: [([u8; 4], bool); 11] = [
+    (*b"HEAD", true),
+    (*b"POS ", true),
+    (*b"NRM ", false),
+    (*b"UV0 ", false),
+    (*b"JNT ", false),
+    (*b"WGT ", false),
+    (*b"PART", true),
+    (*b"OBBS", true),
+    (*b"RGNS", true),
+    (*b"SKIN", false),
+    (*b"VARI", false),
+];
+
+/// The sections of one region (a container nested in `RGNS`), in order.
+const REGION_SECTIONS: [([u8; 4], bool); 9] = [
+    (*b"RGN ", true),
+    (*b"GLOB", true),
+    (*b"IDX ", true),
+    (*b"STEP", true),
+    (*b"CORN", true),
+    (*b"PAIR", true),
+    (*b"ERRS", true),
+    (*b"VIEW", false),
+    (*b"LIST", true),
+];
+
+/// Bytes of one stored box: centre, three axes, half extents.
+const OBB_BYTES: usize = 60;
+
+fn put_u32(out: &mut Vec<u8>, x: usize) {
+    out.extend_from_slice(&(x as u32).to_le_bytes());
+}
+
+fn put_str(out: &mut Vec<u8>, s: &str) {
+    put_u32(out, s.len());
+    out.extend_from_slice(s.as_bytes());
+}
+
+fn put_f32s(out: &mut Vec<u8>, xs: &[f32]) {
+    out.extend(xs.iter().flat_map(|x| x.to_le_bytes()));
+}
+
+fn u32s(xs: &[u32]) -> Vec<u8> {
+    xs.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// The file bytes of `file`.
+pub(super) fn write(file: &MrmFile) -> Vec<u8> {
+    let entries: Vec<Vec<u8>> = file.meshes.iter().map(|(_, m)| write_entry(m)).collect();
+    let mut keys = Vec::new();
+    put_u32(&mut keys, file.meshes.len());
+    for ((key, _), bytes) in file.meshes.iter().zip(&entries) {
+        put_str(&mut keys, key);
+        keys.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
+    }
+    container::write(
+        FORMAT_VERSION,
+        &[
+            (*b"SRC ", build_bytes(&file.build)),
+            (*b"KEYS", keys),
+            (*b"ASET", entries.concat()),
+        ],
+    )
+}
+
+fn build_bytes(b: &BuildInfo) -> Vec<u8> {
+    let o = &b.options;
+    let mut out = Vec::new();
+    out.extend_from_slice(&b.source_hash.to_le_bytes());
+    put_str(&mut out, &b.source_name);
+    put_str(&mut out, &b.partition);
+    put_str(&mut out, &b.writer);
+    out.push(u8::from(b.rigid_delta.is_some()));
+    out.extend_from_slice(&b.rigid_delta.unwrap_or(0.0).to_le_bytes());
+    out.extend_from_slice(&(o.min_triangles as u64).to_le_bytes());
+    out.extend_from_slice(&o.max_error.to_le_bytes());
+    for x in [
+        o.border_weight,
+        o.min_normal_cos,
+        o.regularization,
+        o.local_weight,
+        o.weight_exponent,
+    ] {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+    out.push(u8::from(o.view_dependent));
+    out.extend_from_slice(&o.pair_distance.to_le_bytes());
+    out
+}
+
+fn write_entry(m: &BakedMesh) -> Vec<u8> {
+    let regions = m.regions.regions();
+    let source = m.regions.source_vertices();
+    let (attributes, vertex_sections) = progressive::vertex_sections(&source);
+    let mut head = Vec::new();
+    put_u32(&mut head, m.regions.vertex_count());
+    head.extend_from_slice(&[
+        attributes,
+        u8::from(m.skin.is_some()),
+        u8::from(m.variable.is_some()),
+        0,
+    ]);
+    put_u32(&mut head, regions.len());
+    let mut sections = vec![(*b"HEAD", head)];
+    sections.extend(vertex_sections);
+    sections.push((*b"PART", u32s(m.regions.partition().region_of())));
+    let mut obbs = Vec::with_capacity(OBB_BYTES * m.obbs.len());
+    for b in &m.obbs {
+        put_f32s(&mut obbs, &b.center.to_array());
+        put_f32s(&mut obbs, &b.axes.to_cols_array());
+        put_f32s(&mut obbs, &b.half_extents.to_array());
+    }
+    sections.push((*b"OBBS", obbs));
+    let bodies: Vec<Vec<u8>> = regions.iter().map(write_region).collect();
+    let mut rgns = Vec::new();
+    put_u32(&mut rgns, bodies.len());
+    for b in &bodies {
+        rgns.extend_from_slice(&(b.len() as u64).to_le_bytes());
+    }
+    rgns.extend(bodies.concat());
+    sections.push((*b"RGNS", rgns));
+    if let Some(skin) = &m.skin {
+        sections.push((*b"SKIN", skin_bytes(skin)));
+    }
+    if let Some(variable) = &m.variable {
+        sections.push((*b"VARI", progressive::write(variable)));
+    }
+    container::write(FORMAT_VERSION, &sections)
+}
+
+fn write_region(r: &Region) -> Vec<u8> {
+    let pm = &r.mesh;
+    let (narrow, indices, steps, corners, pairs) = progressive::layout_counts(&pm.records);
+    let mut head = Vec::new();
+    for x in [
+        r.global.len(),
+        r.own_vertices,
+        pm.base_triangles as usize,
+        indices,
+        steps,
+        corners,
+        pairs,
+    ] {
+        put_u32(&mut head, x);
+    }
+    head.extend_from_slice(&[narrow, u8::from(pm.view.is_some()), 0, 0]);
+    put_f32s(&mut head, &r.bounds.0.to_array());
+    put_f32s(&mut head, &r.bounds.1.to_array());
+    for x in [
+        r.border.len(),
+        r.fin_prone.len(),
+        r.neighbors.len(),
+        r.position_of.len(),
+        r.front_events.len(),
+    ] {
+        put_u32(&mut head, x);
+    }
+    let mut sections = vec![(*b"RGN ", head), (*b"GLOB", u32s(&r.global))];
+    progressive::record_sections(&mut sections, pm);
+    let mut list = Vec::new();
+    for xs in [&r.border, &r.fin_prone, &r.neighbors, &r.position_of] {
+        list.extend(u32s(xs));
+    }
+    for e in &r.front_events {
+        list.extend(u32s(&[e.step, e.region, e.corner, e.before, e.after]));
+    }
+    sections.push((*b"LIST", list));
+    container::write(FORMAT_VERSION, &sections)
+}
+
+fn skin_bytes(s: &BakedSkin) -> Vec<u8> {
+    let mut out = Vec::new();
+    put_u32(&mut out, s.inverse_bindposes.len());
+    put_u32(&mut out, s.kinds.len());
+    for k in &s.kinds {
+        let (tag, [a, b]) = match *k {
+            SkinRegionKind::Rigid { bone } => (0u8, [bone, 0]),
+            SkinRegionKind::Deformable { bones } => (1u8, bones),
+        };
+        out.extend_from_slice(&[tag, 0]);
+        out.extend_from_slice(&a.to_le_bytes());
+        out.extend_from_slice(&b.to_le_bytes());
+    }
+    for m in &s.inverse_bindposes {
+        put_f32s(&mut out, &m.to_cols_array());
+    }
+    put_u32(&mut out, s.more_than_two);
+    put_u32(&mut out, s.normalised);
+    put_u32(&mut out, s.joint_names.len());
+    for name in &s.joint_names {
+        put_str(&mut out, name);
+    }
+    out
+}
+
+/// Reads a file of assets (the sections `FILE_SECTIONS`), checking everything.
+pub(super) fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
+    let version = container::peek(bytes).map_or(FORMAT_VERSION, |(v, _)| v);
+    let sections = container::read(bytes, 0, FORMAT_VERSION, &FILE_SECTIONS)?;
+    let build = read_build(section(&sections, b"SRC ")?)?;
+    let mut r = Reader::new(section(&sections, b"KEYS")?);
+    let count = r.u32()? as usize;
+    let mut keys: Vec<(String, u64)> = Vec::new();
+    for _ in 0..count {
+        let at = (r.offset() - r.start()) as usize;
+        let key = r.string()?;
+        if key.is_empty() || keys.iter().any(|(k, _)| *k == key) {
+            return Err(r.invalid(at, "a key is empty or repeated"));
+        }
+        keys.push((key, r.u64()?));
+    }
+    r.finish()?;
+    let aset = section(&sections, b"ASET")?;
+    let mut at = 0u64;
+    let mut meshes = Vec::with_capacity(keys.len());
+    for (key, length) in keys {
+        let end = at
+            .checked_add(length)
+            .filter(|&e| e <= aset.bytes.len() as u64);
+        let Some(end) = end else {
+            return Err(r.invalid(0, "the entries' lengths exceed the ASET section"));
+        };
+        let slice = &aset.bytes[at as usize..end as usize];
+        meshes.push((key, read_entry(slice, aset.offset + at, version)?));
+        at = end;
+    }
+    if at != aset.bytes.len() as u64 {
+        return Err(r.invalid(0, "the entries' lengths do not add up to the ASET section"));
+    }
+    Ok(MrmFile { build, meshes })
+}
+
+fn read_build(s: Section<'_>) -> Result<BuildInfo, MrmError> {
+    let mut r = Reader::new(s);
+    let source_hash = r.u64()?;
+    let source_name = r.string()?;
+    let partition = r.string()?;
+    let writer = r.string()?;
+    let has_delta = r.u8()?;
+    let delta = r.f32()?;
+    let options = BuildOptions {
+        min_triangles: usize::try_from(r.u64()?).unwrap_or(usize::MAX),
+        max_error: r.f32()?,
+        border_weight: r.f64()?,
+        min_normal_cos: r.f64()?,
+        regularization: r.f64()?,
+        local_weight: r.f64()?,
+        weight_exponent: r.f64()?,
+        view_dependent: r.u8()? != 0,
+        pair_distance: r.f32()?,
+    };
+    r.finish()?;
+    Ok(BuildInfo {
+        source_name,
+        source_hash,
+        partition,
+        writer,
+        rigid_delta: (has_delta != 0).then_some(delta),
+        options,
+    })
+}
+
+fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmError> {
+    let sections = container::read(bytes, base, version, &ENTRY_SECTIONS)?;
+    let mut r = Reader::new(section(&sections, b"HEAD")?);
+    let n = r.u32()? as usize;
+    let [attributes, has_skin, has_variable, _] = r.array::<4>()?;
+    let region_count = r.u32()? as usize;
+    r.finish()?;
+    if has_skin > 1 || has_variable > 1 {
+        return Err(r.invalid(4, "unknown flags"));
+    }
+    let present = |tag: &[u8; 4]| sections.iter().any(|s| &s.tag == tag);
+    if present(b"SKIN") != (has_skin != 0) || present(b"VARI") != (has_variable != 0) {
+        return Err(r.invalid(4, "a section is missing or present against the flags"));
+    }
+    let source = progressive::read_vertices(&sections, &r, n, attributes)?;
+    if region_count == 0 || region_count > n {
+        return Err(r.invalid(8, "the region count is zero or above the vertex count"));
+    }
+
+    let mut rp = Reader::new(section(&sections, b"PART")?);
+    let region_of = rp.items::<4, _>(n, u32::from_le_bytes)?;
+    rp.finish()?;
+    let mut sizes = vec![0usize; region_count];
+    for (v, &id) in region_of.iter().enumerate() {
+        let Some(size) = sizes.get_mut(id as usize) else {
+            return Err(rp.invalid(4 * v, "a vertex names a region past the region count"));
+        };
+        *size += 1;
+    }
+    if sizes.contains(&0) {
+        return Err(rp.invalid(0, "a region has no vertex"));
+    }
+
+    let mut ro = Reader::new(section(&sections, b"OBBS")?);
+    let obbs = ro.items::<OBB_BYTES, _>(region_count, |b| {
+        let f: [f32; 15] = std::array::from_fn(|i| {
+            f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
+        });
+        Obb {
+            center: Vec3::from_slice(&f[0..3]),
+            axes: Mat3::from_cols_slice(&f[3..12]),
+            half_extents: Vec3::from_slice(&f[12..15]),
+        }
+    })?;
+    ro.finish()?;
+    let finite = |o: &Obb| o.center.is_finite() && o.axes.is_finite() && o.half_extents.is_finite();
+    if let Some(k) = obbs.iter().position(|o| !finite(o)) {
+        return Err(ro.invalid(OBB_BYTES * k, "a box is not finite"));
+    }
+
+    let rgns = section(&sections, b"RGNS")?;
+    let mut rr = Reader::new(rgns);
+    if rr.u32()? as usize != region_count {
+        return Err(rr.invalid(0, "the region count differs from the header's"));
+    }
+    let lengths = rr.items::<8, _>(region_count, u64::from_le_bytes)?;
+    let mut at = rr.offset() - rgns.offset;
+    let mut regions = Vec::with_capacity(region_count);
+    for length in lengths {
+        let end = at
+            .checked_add(length)
+            .filter(|&e| e <= rgns.bytes.len() as u64);
+        let Some(end) = end else {
+            return Err(rr.invalid(4, "the regions' lengths exceed the RGNS section"));
+        };
+        let slice = &rgns.bytes[at as usize..end as usize];
+        regions.push(read_region(slice, rgns.offset + at, version, &source)?);
+        at = end;
+    }
+    if at != rgns.bytes.len() as u64 {
+        return Err(rr.invalid(4, "the regions' lengths do not add up to the RGNS section"));
+    }
+    // What refers from one region into another stays in range: the regions named, the
+    // corners a front event rewrites and the vertices it writes there.
+    for (i, region) in regions.iter().enumerate() {
+        let at = rgns.offset;
+        let bad = |what| MrmError::Invalid {
+            section: format!("RGNS region {i}"),
+            offset: at,
+            what,
+        };
+        if region.neighbors.iter().any(|&k| k as usize >= region_count) {
+            return Err(bad("a neighbour is past the region count"));
+        }
+        for e in &region.front_events {
+            let Some(target) = regions.get(e.region as usize) else {
+                return Err(bad("a front event names a region past the region count"));
+            };
+            let corners = 3 * target.mesh.max_triangles();
+            let vertices = target.global.len() as u32;
+            if e.corner as usize >= corners || e.before >= vertices || e.after >= vertices {
+                return Err(bad("a front event is out of its region's range"));
+            }
+        }
+    }
+
+    let skin = if has_skin != 0 {
+        if source.joints.is_none() || source.weights.is_none() {
+            return Err(r.invalid(4, "a skinned asset without joints or weights"));
+        }
+        Some(read_skin(section(&sections, b"SKIN")?, region_count)?)
+    } else {
+        None
+    };
+    let variable = if has_variable != 0 {
+        let s = section(&sections, b"VARI")?;
+        let nested = container::read(s.bytes, s.offset, version, &progressive::SECTIONS)?;
+        Some(progressive::read(&nested)?)
+    } else {
+        None
+    };
+    Ok(BakedMesh {
+        regions: RegionMesh::from_parts(
+            Partition::from_region_of(region_of, region_count),
+            regions,
+            n,
+        ),
+        obbs,
+        skin,
+        variable,
+    })
+}
+
+fn read_region(
+    bytes: &[u8],
+    base: u64,
+    version: u32,
+    source: &crate::mesh::IndexedMesh,
+) -> Result<Region, MrmError> {
+    let sections = container::read(bytes, base, version, &REGION_SECTIONS)?;
+    let mut r = Reader::new(section(&sections, b"RGN ")?);
+    let local = r.u32()? as usize;
+    let own_vertices = r.u32()? as usize;
+    let counts = Counts {
+        vertices: local,
+        base: r.u32()? as usize,
+        indices: r.u32()? as usize,
+        steps: r.u32()? as usize,
+        corners: r.u32()? as usize,
+        pairs: r.u32()? as usize,
+    };
+    let [narrow, has_view, _, _] = r.array::<4>()?;
+    let lo = Vec3::new(r.f32()?, r.f32()?, r.f32()?);
+    let hi = Vec3::new(r.f32()?, r.f32()?, r.f32()?);
+    let list_counts: [usize; 5] =
+        [r.u32()?, r.u32()?, r.u32()?, r.u32()?, r.u32()?].map(|x| x as usize);
+    r.finish()?;
+    if own_vertices == 0 || own_vertices > local {
+        return Err(r.invalid(4, "the own vertex count is zero or above the local one"));
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Err(r.invalid(32, "the bounds are not finite"));
+    }
+    let mut rg = Reader::new(section(&sections, b"GLOB")?);
+    let global = rg.items::<4, _>(local, u32::from_le_bytes)?;
+    rg.finish()?;
+    if let Some(k) = global
+        .iter()
+        .position(|&g| g as usize >= source.vertex_count())
+    {
+        return Err(rg.invalid(4 * k, "a vertex names one past the source's vertex table"));
+    }
+    let vertices = subset(source, &global);
+    let mesh = progressive::read_mesh(&sections, &r, vertices, &counts, narrow, has_view)?;
+
+    let mut rl = Reader::new(section(&sections, b"LIST")?);
+    let [nb, nf, nn, np, ne] = list_counts;
+    let border = rl.items::<4, _>(nb, u32::from_le_bytes)?;
+    let fin_prone = rl.items::<4, _>(nf, u32::from_le_bytes)?;
+    let neighbors = rl.items::<4, _>(nn, u32::from_le_bytes)?;
+    let position_of = rl.items::<4, _>(np, u32::from_le_bytes)?;
+    let front_events = rl.items::<20, _>(ne, |b| {
+        let x: [u32; 5] = std::array::from_fn(|i| {
+            u32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
+        });
+        FrontEvent {
+            step: x[0],
+            region: x[1],
+            corner: x[2],
+            before: x[3],
+            after: x[4],
+        }
+    })?;
+    rl.finish()?;
+    let triangles = counts.indices / 3;
+    if border
+        .iter()
+        .chain(&fin_prone)
+        .any(|&t| t as usize >= triangles)
+    {
+        return Err(rl.invalid(0, "a border triangle is past the region's triangles"));
+    }
+    if !(position_of.is_empty() || position_of.len() == local)
+        || position_of.iter().any(|&v| v as usize >= local)
+    {
+        return Err(rl.invalid(4 * (nb + nf + nn), "a position link is out of range"));
+    }
+    Ok(Region {
+        mesh,
+        global,
+        border,
+        fin_prone,
+        front_events,
+        neighbors,
+        own_vertices,
+        bounds: (lo, hi),
+        position_of,
+    })
+}
+
+fn read_skin(s: Section<'_>, region_count: usize) -> Result<BakedSkin, MrmError> {
+    let mut r = Reader::new(s);
+    let joints = r.u32()? as usize;
+    if joints == 0 || joints > usize::from(u16::MAX) + 1 {
+        return Err(r.invalid(0, "the joint count is zero or above 65,536"));
+    }
+    if r.u32()? as usize != region_count {
+        return Err(r.invalid(4, "the kinds do not match the region count"));
+    }
+    let at = (r.offset() - s.offset) as usize;
+    let raw = r.items::<6, _>(region_count, |b| {
+        (
+            b[0],
+            u16::from_le_bytes([b[2], b[3]]),
+            u16::from_le_bytes([b[4], b[5]]),
+        )
+    })?;
+    let mut kinds = Vec::with_capacity(region_count);
+    for (k, (tag, a, b)) in raw.into_iter().enumerate() {
+        let kind = match tag {
+            0 if b == 0 => SkinRegionKind::Rigid { bone: a },
+            1 if a < b => SkinRegionKind::Deformable { bones: [a, b] },
+            _ => {
+                return Err(r.invalid(
+                    at + 6 * k,
+                    "a region kind is unknown or its bones unordered",
+                ));
+            }
+        };
+        if usize::from(a.max(b)) >= joints {
+            return Err(r.invalid(at + 6 * k, "a region's bone is past the joint count"));
+        }
+        kinds.push(kind);
+    }
+    let at = (r.offset() - s.offset) as usize;
+    let inverse_bindposes = r.items::<64, _>(joints, |b| {
+        Mat4::from_cols_array(&std::array::from_fn(|i| {
+            f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
+        }))
+    })?;
+    if let Some(k) = inverse_bindposes.iter().position(|m| !m.is_finite()) {
+        return Err(r.invalid(at + 64 * k, "an inverse bind matrix is not finite"));
+    }
+    let more_than_two = r.u32()? as usize;
+    let normalised = r.u32()? as usize;
+    let names = r.u32()? as usize;
+    if names != 0 && names != joints {
+        return Err(r.invalid(
+            (r.offset() - s.offset) as usize - 4,
+            "a joint name count other than 0 or the joint count",
+        ));
+    }
+    let mut joint_names = Vec::new();
+    for _ in 0..names {
+        joint_names.push(r.string()?);
+    }
+    r.finish()?;
+    Ok(BakedSkin {
+        kinds,
+        inverse_bindposes,
+        joint_names,
+        more_than_two,
+        normalised,
+    })
+}
+
+impl BakedMesh {
+    /// Builds the regions of `mesh` cut by `partition` and fits their boxes; with
+    /// [`BuildOptions::view_dependent`], the whole mesh's refinement data as well.
+    ///
+    /// # Errors
+    /// [`BakeError::Region`] or [`BakeError::Mesh`] when the mesh cannot be partitioned or
+    /// built.
+    pub fn build(
+        mesh: &crate::mesh::IndexedMesh,
+        partition: &Partition,
+        options: &BuildOptions,
+    ) -> Result<Self, BakeError> {
+        let regions = RegionMesh::build(mesh, partition, options)?;
+        let variable = options
+            .view_dependent
+            .then(|| crate::multires::ProgressiveMesh::build(mesh, options))
+            .transpose()?;
+        Ok(Self::from_regions(regions, None, variable))
+    }
+
+    /// Wraps built regions: fits one box per region (on its own vertices).
+    #[must_use]
+    pub fn from_regions(
+        regions: RegionMesh,
+        skin: Option<BakedSkin>,
+        variable: Option<crate::multires::ProgressiveMesh>,
+    ) -> Self {
+        let obbs = regions.regions().iter().map(Region::obb).collect();
+        Self {
+            regions,
+            obbs,
+            skin,
+            variable,
+        }
+    }
+
+    /// Builds a skinned asset: regions by influence (a vertex whose dominant weight is at
+    /// least `1 − rigid_delta` goes to its bone's rigid region, any other to the deformable
+    /// region of its two largest influences), one progressive sequence per region, with
+    /// default [`BuildOptions`]. Weights that do not sum to one are normalised (counted in
+    /// [`BakedSkin::normalised`], with a warning).
+    ///
+    /// # Errors
+    /// [`BakeError::NotSkinned`] for a mesh without joints or weights,
+    /// [`BakeError::NonFiniteBindpose`], [`BakeError::Skin`] for bad influences, and the
+    /// errors of [`build`](Self::build).
+    pub fn build_skinned(
+        mesh: &crate::mesh::IndexedMesh,
+        inverse_bindposes: &[Mat4],
+        joint_names: Vec<String>,
+        rigid_delta: f32,
+    ) -> Result<Self, BakeError> {
+        use crate::skin::{Influences, decompose};
+        let (Some(joints), Some(weights)) = (&mesh.joints, &mesh.weights) else {
+            return Err(BakeError::NotSkinned);
+        };
+        if let Some(joint) = inverse_bindposes.iter().position(|m| !m.is_finite()) {
+            return Err(BakeError::NonFiniteBindpose { joint });
+        }
+        let (influences, report) = Influences::new(joints, weights, inverse_bindposes.len())?;
+        let normalised = report.renormalised + report.unused_slots_cleared;
+        if normalised > 0 {
+            log::warn!(
+                "{} skinned vertices had weights not summing to one and {} named an unused joint \
+                 out of range: normalised",
+                report.renormalised,
+                report.unused_slots_cleared
+            );
+        }
+        let decomposition = decompose(&mesh.positions, &influences, rigid_delta);
+        let (partition, _) = Partition::from_ids(mesh, &decomposition.region_of)?;
+        // `from_ids` moves seam copies to the region of the first vertex at their position
+        // and renumbers the ids in increasing order: follow both to find each region's kind.
+        let weld = crate::mesh::weld_positions(&mesh.positions);
+        let mut kinds = vec![None; partition.region_count()];
+        for (v, &r) in partition.region_of().iter().enumerate() {
+            let original = decomposition.region_of[weld.remap[v] as usize] as usize;
+            kinds[r as usize] = Some(decomposition.kinds[original]);
+        }
+        let kinds = kinds
+            .into_iter()
+            .map(|k| k.unwrap_or(SkinRegionKind::Rigid { bone: 0 }))
+            .collect();
+        let regions = RegionMesh::build(mesh, &partition, &BuildOptions::default())?;
+        let skin = BakedSkin {
+            kinds,
+            inverse_bindposes: inverse_bindposes.to_vec(),
+            joint_names,
+            more_than_two: decomposition.more_than_two,
+            normalised,
+        };
+        Ok(Self::from_regions(regions, Some(skin), None))
+    }
+}
