@@ -23,6 +23,30 @@ struct Cli {
     command: Command,
 }
 
+#[derive(clap::Args)]
+struct BakeArgs {
+    /// Input mesh (.obj, .ply, .gltf, .glb).
+    input: PathBuf,
+    /// Output `.mrm` file.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// How unskinned meshes are cut into regions: `single`, `grid:NxM` (ground plane) or
+    /// `clusters:K`.
+    #[arg(long, default_value = "single")]
+    regions: String,
+    /// Add the whole mesh's view-dependent refinement data (for `ViewDependent` models;
+    /// about doubles the file).
+    #[arg(long)]
+    view: bool,
+    /// δ of skinned primitives: a vertex whose dominant weight is at least 1 − δ is rigid.
+    #[arg(long, default_value_t = bevy_aslod::skin::DEFAULT_RIGID_DELTA)]
+    rigid_delta: f32,
+    /// Write the whole (flattened) input as one progressive mesh instead (the version 1
+    /// layout `aslod info` and `mrm::read_progressive` read), with view data.
+    #[arg(long)]
+    progressive: bool,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Write the level with at most N triangles (or the coarsest within an error, or the
@@ -59,18 +83,11 @@ enum Command {
         /// Input mesh (.obj, .ply, .gltf, .glb) or baked file (.mrm).
         input: PathBuf,
     },
-    /// Build the whole mesh's progressive sequence, with the view-dependent data, and write
-    /// it as a `.mrm` file (one progressive mesh: regions and skins are not baked yet).
-    Bake {
-        /// Input mesh (.obj, .ply, .gltf, .glb).
-        input: PathBuf,
-        /// Output `.mrm` file.
-        #[arg(short, long)]
-        output: PathBuf,
-        /// Leave out the view-dependent data (about 7 bytes per triangle).
-        #[arg(long)]
-        no_view: bool,
-    },
+    /// Build multiresolution assets and write them as a `.mrm` file the plugin loads without
+    /// building: an OBJ or PLY as one asset (key `Mesh0/Primitive0`), a glTF scene as one
+    /// asset per triangle primitive under Bevy's label (`Mesh{m}/Primitive{p}`), skinned
+    /// primitives cut by influence.
+    Bake(BakeArgs),
     /// Generate the procedural mannequin (ASLOD section 7): a skinned, animated binary glTF
     /// with 10 rigid and 9 deformable regions and the "Aerobics" loop.
     Mannequin {
@@ -180,11 +197,7 @@ fn main() -> ExitCode {
         } => extract(&input, triangles, error, &output),
         Command::Compare(args) => compare(&args),
         Command::Info { input } => info(&input),
-        Command::Bake {
-            input,
-            output,
-            no_view,
-        } => bake(&input, &output, !no_view),
+        Command::Bake(args) => bake(&args),
         Command::Mannequin { output, cell_size } => mannequin(&output, cell_size),
     };
     match result {
@@ -393,47 +406,173 @@ fn assemble(
     (all, groups)
 }
 
-fn bake(input: &Path, output: &Path, view: bool) -> CliResult {
-    let mesh = load(input)?;
+fn bake(args: &BakeArgs) -> CliResult {
+    use bevy_aslod::mrm::{BakedMesh, BuildInfo, MrmFile};
     let start = Instant::now();
-    let pm = build_with(&mesh, &BuildOptions::default().with_view_dependent(view))?;
+    if args.progressive {
+        let mesh = load(&args.input)?;
+        let pm = build_with(&mesh, &BuildOptions::default().with_view_dependent(true))?;
+        let bytes = mrm::write_progressive(&pm);
+        std::fs::write(&args.output, &bytes)?;
+        println!(
+            "{}: one progressive mesh, {} triangles, {} levels, built in {:.0} ms; {} bytes ({:.1} bytes/triangle)",
+            args.output.display(),
+            pm.max_triangles(),
+            pm.level_count(),
+            start.elapsed().as_secs_f64() * 1e3,
+            bytes.len(),
+            bytes.len() as f64 / pm.max_triangles().max(1) as f64
+        );
+        return Ok(());
+    }
+    let source = std::fs::read(&args.input)?;
+    let gltf = args
+        .input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
+    // Each primitive with its skin's inverse binds and joint names, when skinned.
+    type Skin = (Vec<glam::Mat4>, Vec<String>);
+    let primitives: Vec<(String, IndexedMesh, Option<Skin>)> = if gltf {
+        let (primitives, skins) = bevy_aslod::mesh::load_gltf_primitives(&args.input)?;
+        primitives
+            .into_iter()
+            .map(|p| {
+                let skin = p.skin.map(|s| {
+                    let skin = &skins[s];
+                    (skin.inverse_bind_matrices.clone(), skin.joint_names.clone())
+                });
+                (p.key, p.mesh, skin)
+            })
+            .collect()
+    } else {
+        vec![("Mesh0/Primitive0".to_owned(), load(&args.input)?, None)]
+    };
+    let options = BuildOptions::default().with_view_dependent(args.view);
+    let bar = ProgressBar::new(primitives.len() as u64);
+    if std::io::stderr().is_terminal() {
+        bar.set_style(ProgressStyle::with_template(
+            "baking [{bar:40}] {pos}/{len} {msg}",
+        )?);
+    } else {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let mut meshes = Vec::with_capacity(primitives.len());
+    let mut any_skin = false;
+    for (key, mesh, skin) in primitives {
+        bar.set_message(format!("{key} ({} triangles)", mesh.triangle_count()));
+        let baked = match skin {
+            Some((inverse_binds, names)) => {
+                any_skin = true;
+                let mut baked =
+                    BakedMesh::build_skinned(&mesh, &inverse_binds, names, args.rigid_delta)?;
+                if args.view {
+                    baked.variable = Some(ProgressiveMesh::build(&mesh, &options)?);
+                }
+                baked
+            }
+            None => BakedMesh::build(&mesh, &partition_spec(&mesh, &args.regions)?, &options)?,
+        };
+        meshes.push((key, baked));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let bytes = mrm::write_progressive(&pm);
-    std::fs::write(output, &bytes)?;
+    let file = MrmFile {
+        build: BuildInfo {
+            source_name: args
+                .input
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            source_hash: mrm::source_hash(&source),
+            partition: args.regions.clone(),
+            writer: format!("aslod bake {}", env!("CARGO_PKG_VERSION")),
+            rigid_delta: any_skin.then_some(args.rigid_delta),
+            options,
+        },
+        meshes,
+    };
+    let bytes = mrm::write(&file);
+    std::fs::write(&args.output, &bytes)?;
+    let triangles: usize = file.meshes.iter().map(|(_, m)| max_triangles(m)).sum();
     println!(
-        "{}: {} triangles, {} levels, built in {build_ms:.0} ms; {} bytes ({:.1} bytes/triangle)",
-        output.display(),
-        pm.max_triangles(),
-        pm.level_count(),
+        "{}: {} assets, {} triangles, built in {build_ms:.0} ms; {} bytes ({:.1} bytes/triangle)",
+        args.output.display(),
+        file.meshes.len(),
+        triangles,
         bytes.len(),
-        bytes.len() as f64 / pm.max_triangles().max(1) as f64
+        bytes.len() as f64 / triangles.max(1) as f64
     );
     Ok(())
 }
 
-/// `info` for a `.mrm` file: its sections, then the mesh it holds (read and checked).
+fn max_triangles(m: &bevy_aslod::mrm::BakedMesh) -> usize {
+    m.regions.regions().iter().map(|r| r.max_triangles()).sum()
+}
+
+/// [`partition`], with `single` for one region.
+fn partition_spec(mesh: &IndexedMesh, spec: &str) -> Result<Partition, Box<dyn std::error::Error>> {
+    if spec == "single" {
+        Ok(Partition::grid(mesh, GridPlane::XZ, 1, 1)?)
+    } else {
+        partition(mesh, spec)
+    }
+}
+
+/// `info` for a `.mrm` file: its sections, then what it holds (read and checked).
 fn info_mrm(input: &Path) -> CliResult {
     let bytes = std::fs::read(input)?;
+    let kind = mrm::kind(&bytes)?;
+    let version = u32::from_le_bytes(bytes[8..12].try_into()?);
     println!(
-        "{} ({} bytes, format version {})",
+        "{} ({} bytes, format version {version})",
         input.display(),
-        bytes.len(),
-        mrm::FORMAT_VERSION
+        bytes.len()
     );
     for (tag, length) in mrm::sections(&bytes)? {
         println!("  {tag:<4} {length:>12} bytes");
     }
     let start = Instant::now();
-    let pm = mrm::read_progressive(&bytes)?;
+    if kind == mrm::MrmKind::Progressive {
+        let pm = mrm::read_progressive(&bytes)?;
+        println!(
+            "  triangles {} / vertices {}, levels {} (base mesh {} triangles), view data {}; read in {:.1} ms",
+            pm.max_triangles(),
+            pm.vertices().vertex_count(),
+            pm.level_count(),
+            pm.min_triangles(),
+            if pm.has_view_data() { "yes" } else { "no" },
+            start.elapsed().as_secs_f64() * 1e3
+        );
+        return Ok(());
+    }
+    let file = mrm::read(&bytes)?;
+    let read_ms = start.elapsed().as_secs_f64() * 1e3;
+    let b = &file.build;
     println!(
-        "  triangles {} / vertices {}, levels {} (base mesh {} triangles), view data {}; read in {:.1} ms",
-        pm.max_triangles(),
-        pm.vertices().vertex_count(),
-        pm.level_count(),
-        pm.min_triangles(),
-        if pm.has_view_data() { "yes" } else { "no" },
-        start.elapsed().as_secs_f64() * 1e3
+        "  from {} (FNV-1a {:016x}), regions {}, by {}; read in {read_ms:.1} ms",
+        b.source_name, b.source_hash, b.partition, b.writer
     );
+    for (key, m) in &file.meshes {
+        let skin = m.skin.as_ref().map_or("no skin".to_owned(), |s| {
+            format!("skinned, {} joints", s.inverse_bindposes.len())
+        });
+        println!(
+            "  {key}: {} vertices, {} regions, {} to {} triangles, {skin}, view data {}",
+            m.regions.vertex_count(),
+            m.regions.regions().len(),
+            m.regions
+                .regions()
+                .iter()
+                .map(|r| r.min_triangles())
+                .sum::<usize>(),
+            max_triangles(m),
+            if m.variable.is_some() { "yes" } else { "no" },
+        );
+    }
+    for (name, length) in mrm::entry_sections(&bytes)? {
+        println!("    {name:<28} {length:>12} bytes");
+    }
     Ok(())
 }
 
@@ -998,20 +1137,47 @@ mod tests {
             "/../shared/testdata/meshes/cow.obj"
         );
         let out = std::env::temp_dir().join(format!("aslod-bake-{}.mrm", std::process::id()));
-        let cli = Cli::parse_from(["aslod", "bake", cow, "-o", out.to_str().unwrap()]);
-        let Command::Bake {
-            input,
-            output,
-            no_view,
-        } = cli.command
-        else {
-            panic!("parsed as bake");
+        let run = |extra: &[&str]| {
+            let mut argv = vec!["aslod", "bake", cow, "-o", out.to_str().unwrap()];
+            argv.extend_from_slice(extra);
+            let Command::Bake(args) = Cli::parse_from(argv).command else {
+                panic!("parsed as bake");
+            };
+            bake(&args).unwrap();
+            info(&out).unwrap();
+            std::fs::read(&out).unwrap()
         };
-        bake(&input, &output, !no_view).unwrap();
-        info(&out).unwrap();
-        let pm = mrm::read_progressive(&std::fs::read(&out).unwrap()).unwrap();
+        let pm = mrm::read_progressive(&run(&["--progressive"])).unwrap();
         assert!(pm.has_view_data());
         assert_eq!(pm.max_triangles(), 5804);
+        let file = mrm::read(&run(&["--regions", "clusters:8", "--view"])).unwrap();
+        let (key, baked) = &file.meshes[0];
+        assert_eq!(key, "Mesh0/Primitive0");
+        assert!(baked.regions.regions().len() > 4 && baked.variable.is_some());
+        assert_eq!(file.build.partition, "clusters:8");
+        let source = std::fs::read(cow).unwrap();
+        assert_eq!(file.build.source_hash, mrm::source_hash(&source));
+        // A glTF scene: one asset per primitive, the skinned ones with their joints' names.
+        let robot = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shared/testdata/characters/RobotExpressive.glb"
+        );
+        let out_robot = out.with_extension("robot.mrm");
+        let cli = Cli::parse_from(["aslod", "bake", robot, "-o", out_robot.to_str().unwrap()]);
+        let Command::Bake(args) = cli.command else {
+            panic!("parsed as bake");
+        };
+        bake(&args).unwrap();
+        let file = mrm::read(&std::fs::read(&out_robot).unwrap()).unwrap();
+        assert!(file.meshes.len() > 1);
+        let skinned = file.meshes.iter().filter_map(|(_, m)| m.skin.as_ref());
+        assert!(skinned.clone().count() > 0);
+        assert!(
+            skinned
+                .clone()
+                .all(|s| s.joint_names.iter().any(|n| !n.is_empty()))
+        );
+        std::fs::remove_file(&out_robot).ok();
         std::fs::write(&out, b"ASLODMRM").unwrap();
         assert!(info(&out).unwrap_err().to_string().contains("header"));
         std::fs::remove_file(&out).ok();

@@ -247,6 +247,54 @@ pub(super) fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
     Ok(MrmFile { build, meshes })
 }
 
+/// The sections of every entry (`key: TAG`) and, summed over its regions, of the regions
+/// (`key: RGNS/TAG`), with their sizes, after checking every container.
+pub(super) fn entry_sections(bytes: &[u8]) -> Result<Vec<(String, u64)>, MrmError> {
+    let version = container::peek(bytes).map_or(FORMAT_VERSION, |(v, _)| v);
+    let sections = container::read(bytes, 0, FORMAT_VERSION, &FILE_SECTIONS)?;
+    let mut r = Reader::new(section(&sections, b"KEYS")?);
+    let aset = section(&sections, b"ASET")?;
+    let (mut out, mut at) = (Vec::new(), 0u64);
+    for _ in 0..r.u32()? {
+        let key = r.string()?;
+        let length = r.u64()?;
+        let slice = at
+            .checked_add(length)
+            .and_then(|end| aset.bytes.get(at as usize..usize::try_from(end).ok()?))
+            .ok_or_else(|| r.invalid(0, "the entries' lengths exceed the ASET section"))?;
+        let entry = container::read(slice, aset.offset + at, version, &ENTRY_SECTIONS)?;
+        let mut inner: Vec<(String, u64)> = Vec::new();
+        for s in &entry {
+            let tag = container::tag_name(s.tag);
+            out.push((format!("{key}: {tag}"), s.bytes.len() as u64));
+            if &s.tag != b"RGNS" {
+                continue;
+            }
+            let mut rr = Reader::new(*s);
+            let count = rr.u32()? as usize;
+            let lengths = rr.items::<8, _>(count, u64::from_le_bytes)?;
+            let mut from = rr.offset() - s.offset;
+            for length in lengths {
+                let region = from
+                    .checked_add(length)
+                    .and_then(|end| s.bytes.get(from as usize..usize::try_from(end).ok()?))
+                    .ok_or_else(|| rr.invalid(4, "the regions' lengths exceed the RGNS section"))?;
+                for t in container::read(region, s.offset + from, version, &REGION_SECTIONS)? {
+                    let name = format!("{key}: RGNS/{}", container::tag_name(t.tag));
+                    match inner.iter_mut().find(|(n, _)| *n == name) {
+                        Some(sum) => sum.1 += t.bytes.len() as u64,
+                        None => inner.push((name, t.bytes.len() as u64)),
+                    }
+                }
+                from += length;
+            }
+        }
+        out.extend(inner);
+        at += length;
+    }
+    Ok(out)
+}
+
 fn read_build(s: Section<'_>) -> Result<BuildInfo, MrmError> {
     let mut r = Reader::new(s);
     let source_hash = r.u64()?;

@@ -199,6 +199,15 @@ pub fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
     }
 }
 
+/// The sections inside each asset of a file of assets (`key: TAG`) and of its regions,
+/// summed over them (`key: RGNS/TAG`), with their sizes in bytes: what `aslod info` prints.
+///
+/// # Errors
+/// As [`read`], for the containers.
+pub fn entry_sections(bytes: &[u8]) -> Result<Vec<(String, u64)>, MrmError> {
+    asset::entry_sections(bytes)
+}
+
 /// Whether a file holds a progressive mesh or assets, from its header and first section's
 /// tag (nothing else is checked: reading does that).
 ///

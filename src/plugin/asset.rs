@@ -3,6 +3,7 @@
 use crate::bevy_mesh::from_bevy_mesh;
 use crate::budget::{Obb, fit_aabb};
 use crate::mesh::{IndexedMesh, MeshError};
+use crate::mrm::{BakeError, BakedMesh};
 use crate::multires::{BuildOptions, ProgressiveMesh};
 use crate::refine::VariableMesh;
 use crate::regions::{GridPlane, Partition, Region, RegionError, RegionMesh};
@@ -40,6 +41,21 @@ pub enum MultiresError {
         /// The joint.
         joint: usize,
     },
+    /// Baked data whose parts do not fit together (see [`MultiresMesh::from_baked`]).
+    #[error("baked asset: {0}")]
+    Baked(&'static str),
+}
+
+impl From<BakeError> for MultiresError {
+    fn from(e: BakeError) -> Self {
+        match e {
+            BakeError::Mesh(e) => Self::Mesh(e),
+            BakeError::Region(e) => Self::Region(e),
+            BakeError::Skin(e) => Self::Skin(e),
+            BakeError::NotSkinned => Self::NotSkinned,
+            BakeError::NonFiniteBindpose { joint } => Self::NonFiniteBindpose { joint },
+        }
+    }
 }
 
 /// How to cut a mesh into regions for [`MultiresMesh::from_bevy_mesh`].
@@ -106,6 +122,51 @@ impl MultiresMesh {
             skin: None,
             variable: None,
         }
+    }
+
+    /// The asset of already built (or read) data: nothing is built, the skin binding and
+    /// the refinement graph are derived (linear in the vertices).
+    ///
+    /// ```
+    /// use bevy_aslod::mrm::{self, BakedMesh};
+    /// use bevy_aslod::plugin::{MultiresMesh, PartitionSpec};
+    /// use bevy_aslod::prelude::*;
+    ///
+    /// let (mesh, _) = IndexedMesh::load("../shared/testdata/meshes/cow.obj")?;
+    /// let partition = PartitionSpec::Clusters(8).partition(&mesh)?;
+    /// let baked = BakedMesh::build(&mesh, &partition, &BuildOptions::default())?;
+    /// let cow = MultiresMesh::from_baked(baked)?;
+    /// assert_eq!(cow.max_triangles(), mesh.triangle_count());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`MultiresError::Baked`] when the boxes or skin kinds do not match the regions, and
+    /// [`MultiresError::Skin`] or [`MultiresError::Refine`] when the skin's influences or
+    /// the refinement data are unusable.
+    pub fn from_baked(baked: BakedMesh) -> Result<Self, MultiresError> {
+        let BakedMesh {
+            regions,
+            obbs,
+            skin,
+            variable,
+        } = baked;
+        if obbs.len() != regions.regions().len() {
+            return Err(MultiresError::Baked("one box per region is needed"));
+        }
+        let skin = skin
+            .map(|s| super::skin::SkinBinding::from_baked(&regions, s))
+            .transpose()?;
+        let variable = variable.map(VariableMesh::new).transpose()?;
+        let corners: Vec<Vec3> = obbs.iter().flat_map(Obb::corners).collect();
+        let bounds = fit_aabb(&corners).unwrap_or(Obb::from_aabb(Vec3::ZERO, Vec3::ZERO));
+        Ok(Self {
+            regions: Arc::new(regions),
+            obbs: obbs.into(),
+            bounds,
+            skin: skin.map(Arc::new),
+            variable: variable.map(Arc::new),
+        })
     }
 
     /// Adds the refinement data a [`ViewDependent`](super::ViewDependent) model needs: the

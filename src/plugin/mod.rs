@@ -54,6 +54,7 @@
 //! ```
 
 mod asset;
+mod loader;
 mod overlay;
 mod refine;
 mod render;
@@ -63,6 +64,7 @@ mod systems;
 mod tasks;
 
 pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
+pub use loader::{MrmLoadError, MrmLoader};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
 pub use refine::{RefineCamera, Refinement, VariableLevel, ViewDependent};
 pub use render::{RegionUpload, RegionUploadStats};
@@ -137,6 +139,7 @@ impl AslodPlugin {
 impl Plugin for AslodPlugin {
     fn build(&self, app: &mut App) {
         app.init_asset::<MultiresMesh>()
+            .register_asset_loader(MrmLoader)
             .register_type::<PolygonBudget>()
             .register_type::<FullDetail>()
             .register_type::<RegionUpload>()

@@ -28,6 +28,14 @@ use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
 /// shows it; until all of a scene's assets are ready, the scene keeps showing its original
 /// meshes (skinned by Bevy as usual), so no frame stalls on the build. When it is done the
 /// plugin adds [`MultiresSceneModels`] to this entity.
+///
+/// **Baked scenes.** With [`baked`](Self::baked) naming an `.mrm` file made from the same
+/// glTF (`aslod bake scene.glb -o scene.mrm`), nothing is built: the asset of each mesh
+/// primitive is loaded from the file's entry with the same key as the primitive's Bevy label
+/// (`Mesh0/Primitive0` is `"scene.mrm#Mesh0/Primitive0"`). The glTF still supplies the
+/// skeleton, the materials and the animations. An entry that is missing, fails to load, or
+/// does not fit (a skinned entry with another joint count than the mesh's skin, or a skinned
+/// entry for an unskinned mesh) is built as without a baked file, with a warning.
 #[derive(Component, Clone, Debug, PartialEq)]
 pub struct MultiresScene {
     /// δ: a skinned vertex whose dominant weight is at least `1 − δ` is rigid. Default
@@ -35,6 +43,9 @@ pub struct MultiresScene {
     pub rigid_delta: f32,
     /// How unskinned meshes are cut into regions. Default [`PartitionSpec::Single`].
     pub static_partition: PartitionSpec,
+    /// The asset path of an `.mrm` file baked from this scene's glTF, to load instead of
+    /// building. Default `None`. (Its own δ and partition apply, not the two above.)
+    pub baked: Option<String>,
 }
 
 impl Default for MultiresScene {
@@ -42,7 +53,17 @@ impl Default for MultiresScene {
         Self {
             rigid_delta: DEFAULT_RIGID_DELTA,
             static_partition: PartitionSpec::Single,
+            baked: None,
         }
+    }
+}
+
+impl MultiresScene {
+    /// Loads the scene's assets from a baked `.mrm` file (see [`baked`](Self::baked)).
+    #[must_use]
+    pub fn with_baked(mut self, path: impl Into<String>) -> Self {
+        self.baked = Some(path.into());
+        self
     }
 }
 
@@ -96,10 +117,50 @@ fn build_key(mesh: &Mesh3d, skin: Option<&SkinnedMesh>, options: &MultiresScene)
 }
 
 enum Built {
+    /// Loading from a baked file; built from the inputs if that fails or does not fit.
+    Loading(Handle<MultiresMesh>, Box<BuildInputs>),
     /// Building on the async compute pool.
     Pending(Task<Result<MultiresMesh, super::MultiresError>>),
     Ok(Handle<MultiresMesh>, usize),
     Failed,
+}
+
+/// What one source mesh's asset is built from.
+struct BuildInputs {
+    indexed: Result<crate::mesh::IndexedMesh, crate::mesh::MeshError>,
+    inverse_bindposes: Option<Vec<Mat4>>,
+    rigid_delta: f32,
+    static_partition: PartitionSpec,
+}
+
+impl BuildInputs {
+    /// Starts the build on the async compute pool.
+    fn spawn(self) -> Built {
+        Built::Pending(
+            AsyncComputeTaskPool::get_or_init(TaskPool::default).spawn(async move {
+                // A panic in the build (a bug) leaves the mesh conventional instead of taking
+                // the app down.
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    build(
+                        self.indexed,
+                        self.inverse_bindposes,
+                        self.rigid_delta,
+                        self.static_partition,
+                    )
+                }))
+                .unwrap_or(Err(super::MultiresError::BuildPanicked))
+            }),
+        )
+    }
+
+    /// Whether a baked asset can stand for the mesh these inputs describe.
+    fn fits(&self, asset: &MultiresMesh) -> bool {
+        match (&self.inverse_bindposes, asset.skin()) {
+            (Some(ib), Some(skin)) => skin.joint_count() == ib.len(),
+            (None, None) => true,
+            _ => false,
+        }
+    }
 }
 
 /// Builds one source mesh's asset (runs on the async compute pool).
@@ -120,9 +181,38 @@ fn build(
 }
 
 impl SceneAssetCache {
-    /// Collects the builds that finished: their assets join `Assets<MultiresMesh>`.
-    fn poll(&mut self, multires: &mut Assets<MultiresMesh>) {
+    /// Collects the baked assets that loaded (building those that did not load or fit) and
+    /// the builds that finished: their assets join `Assets<MultiresMesh>`.
+    fn poll(&mut self, multires: &mut Assets<MultiresMesh>, server: &AssetServer) {
         for built in self.built.values_mut() {
+            if let Built::Loading(handle, _) = built {
+                let asset = multires.get(&*handle);
+                let failed = server.load_state(handle.id()).is_failed();
+                if asset.is_none() && !failed {
+                    continue;
+                }
+                let Built::Loading(handle, inputs) = std::mem::replace(built, Built::Failed) else {
+                    continue;
+                };
+                let path = handle.path().map(ToString::to_string).unwrap_or_default();
+                match multires.get(&handle) {
+                    Some(asset) if inputs.fits(asset) => {
+                        let more = asset.skin().map_or(0, |s| s.more_than_two());
+                        *built = Built::Ok(handle, more);
+                    }
+                    Some(_) => {
+                        warn!(
+                            "{path}: the baked asset does not fit its mesh (skin or joint count); building it"
+                        );
+                        *built = inputs.spawn();
+                    }
+                    None => {
+                        warn!("{path}: the baked asset did not load; building it");
+                        *built = inputs.spawn();
+                    }
+                }
+                continue;
+            }
             let Built::Pending(task) = built else {
                 continue;
             };
@@ -164,6 +254,7 @@ pub(crate) fn convert_scenes(
     bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
     mut multires: ResMut<Assets<MultiresMesh>>,
     mut cache: ResMut<SceneAssetCache>,
+    server: Res<AssetServer>,
 ) {
     // Apps without skinning (no `Assets<SkinnedMeshInverseBindposes>`) can still convert
     // unskinned scenes.
@@ -175,7 +266,7 @@ pub(crate) fn convert_scenes(
         }
         return;
     };
-    cache.poll(&mut multires);
+    cache.poll(&mut multires, &server);
     for (root, options) in &scenes {
         let found: Vec<Entity> = children
             .iter_descendants(root)
@@ -209,26 +300,26 @@ pub(crate) fn convert_scenes(
             let key = build_key(mesh3d, skin, options);
             let built = cache.built.entry(key).or_insert_with(|| {
                 // The conversion copies the mesh here; the build runs on the pool.
-                let indexed = from_bevy_mesh(mesh);
-                let ib = skin.map(|skin| {
-                    bindposes
-                        .get(&skin.inverse_bindposes)
-                        .map(|b| b.to_vec())
-                        .unwrap_or_default()
-                });
-                let (delta, partition) = (options.rigid_delta, options.static_partition);
-                Built::Pending(AsyncComputeTaskPool::get_or_init(TaskPool::default).spawn(
-                    async move {
-                        // A panic in the build (a bug) leaves the mesh conventional instead
-                        // of taking the app down.
-                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                            build(indexed, ib, delta, partition)
-                        }))
-                        .unwrap_or(Err(super::MultiresError::BuildPanicked))
-                    },
-                ))
+                let inputs = BuildInputs {
+                    indexed: from_bevy_mesh(mesh),
+                    inverse_bindposes: skin.map(|skin| {
+                        bindposes
+                            .get(&skin.inverse_bindposes)
+                            .map(|b| b.to_vec())
+                            .unwrap_or_default()
+                    }),
+                    rigid_delta: options.rigid_delta,
+                    static_partition: options.static_partition,
+                };
+                let label = mesh3d.0.path().and_then(|p| p.label());
+                match (&options.baked, label) {
+                    (Some(file), Some(label)) => {
+                        Built::Loading(server.load(format!("{file}#{label}")), Box::new(inputs))
+                    }
+                    _ => inputs.spawn(),
+                }
             });
-            pending |= matches!(built, Built::Pending(_));
+            pending |= matches!(built, Built::Pending(_) | Built::Loading(..));
         }
         if pending {
             continue;

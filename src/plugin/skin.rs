@@ -16,10 +16,10 @@
 use super::tasks::par_chunks;
 use super::{MultiresError, MultiresMesh};
 use crate::budget::Obb;
-use crate::mesh::{IndexedMesh, weld_positions};
-use crate::multires::BuildOptions;
-use crate::regions::{Partition, RegionCaches, RegionMesh};
-use crate::skin::{Influences, SkinRegionKind, blend, decompose};
+use crate::mesh::IndexedMesh;
+use crate::mrm::{BakedMesh, BakedSkin};
+use crate::regions::{RegionCaches, RegionMesh};
+use crate::skin::{Influences, SkinRegionKind, blend};
 use bevy::prelude::*;
 use glam::{Affine3A, Mat3, Mat4, Vec3};
 use std::sync::Arc;
@@ -44,6 +44,60 @@ pub struct SkinBinding {
 }
 
 impl SkinBinding {
+    /// The binding of baked regions: how each local vertex is placed (by its rigid
+    /// region's bone, or by all its influences, normalised again from the source's), and
+    /// the joints each region depends on.
+    pub(super) fn from_baked(regions: &RegionMesh, skin: BakedSkin) -> Result<Self, MultiresError> {
+        let BakedSkin {
+            kinds,
+            inverse_bindposes,
+            more_than_two,
+            normalised,
+            ..
+        } = skin;
+        if kinds.len() != regions.regions().len() {
+            return Err(MultiresError::Baked("one skin kind per region is needed"));
+        }
+        let source = regions.source_vertices();
+        let (Some(joints), Some(weights)) = (&source.joints, &source.weights) else {
+            return Err(MultiresError::NotSkinned);
+        };
+        let (influences, _) = Influences::new(joints, weights, inverse_bindposes.len())?;
+        let region_of = regions.partition().region_of();
+        let placed = |g: usize| -> ([u16; 4], [f32; 4]) {
+            match kinds[region_of[g] as usize] {
+                SkinRegionKind::Rigid { bone } => ([bone, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
+                SkinRegionKind::Deformable { .. } => (influences.joints[g], influences.weights[g]),
+            }
+        };
+        let mut local = Vec::with_capacity(kinds.len());
+        let mut region_joints = Vec::with_capacity(kinds.len());
+        for region in regions.regions() {
+            let (joints, weights): (Vec<_>, Vec<_>) = region
+                .global_vertices()
+                .iter()
+                .map(|&g| placed(g as usize))
+                .unzip();
+            let mut used: Vec<u16> = joints
+                .iter()
+                .zip(&weights)
+                .flat_map(|(j, w)| j.iter().zip(w).filter(|(_, w)| **w > 0.0).map(|(j, _)| *j))
+                .collect();
+            used.sort_unstable();
+            used.dedup();
+            region_joints.push(used);
+            local.push(Influences { joints, weights });
+        }
+        Ok(Self {
+            kinds,
+            local,
+            region_joints,
+            inverse_bindposes,
+            more_than_two,
+            normalised,
+        })
+    }
+
     /// Per region: rigid or deformable, and its bones.
     #[inline]
     #[must_use]
@@ -123,74 +177,8 @@ impl MultiresMesh {
         inverse_bindposes: &[Mat4],
         rigid_delta: f32,
     ) -> Result<Self, MultiresError> {
-        let (Some(joints), Some(weights)) = (&mesh.joints, &mesh.weights) else {
-            return Err(MultiresError::NotSkinned);
-        };
-        if let Some(joint) = inverse_bindposes.iter().position(|m| !m.is_finite()) {
-            return Err(MultiresError::NonFiniteBindpose { joint });
-        }
-        let (influences, report) = Influences::new(joints, weights, inverse_bindposes.len())?;
-        let normalised = report.renormalised + report.unused_slots_cleared;
-        if normalised > 0 {
-            warn!(
-                "{} skinned vertices had weights not summing to one and {} named an unused joint \
-                 out of range: normalised",
-                report.renormalised, report.unused_slots_cleared
-            );
-        }
-        let decomposition = decompose(&mesh.positions, &influences, rigid_delta);
-        let (partition, _) = Partition::from_ids(mesh, &decomposition.region_of)?;
-        // `from_ids` moves seam copies to the region of the first vertex at their position
-        // and renumbers the ids in increasing order: follow both to find each region's kind.
-        let weld = weld_positions(&mesh.positions);
-        let mut kinds = vec![None; partition.region_count()];
-        for (v, &r) in partition.region_of().iter().enumerate() {
-            let original = decomposition.region_of[weld.remap[v] as usize] as usize;
-            kinds[r as usize] = Some(decomposition.kinds[original]);
-        }
-        let kinds: Vec<SkinRegionKind> = kinds
-            .into_iter()
-            .map(|k| k.unwrap_or(SkinRegionKind::Rigid { bone: 0 }))
-            .collect();
-        let regions = RegionMesh::build(mesh, &partition, &BuildOptions::default())?;
-
-        // How each source vertex is placed: by its rigid region's bone, or by all its
-        // influences.
-        let placed = |g: usize| -> ([u16; 4], [f32; 4]) {
-            match kinds[partition.region_of()[g] as usize] {
-                SkinRegionKind::Rigid { bone } => ([bone, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
-                SkinRegionKind::Deformable { .. } => (influences.joints[g], influences.weights[g]),
-            }
-        };
-        let mut local = Vec::with_capacity(kinds.len());
-        let mut region_joints = Vec::with_capacity(kinds.len());
-        for region in regions.regions() {
-            let (joints, weights): (Vec<_>, Vec<_>) = region
-                .global_vertices()
-                .iter()
-                .map(|&g| placed(g as usize))
-                .unzip();
-            let mut used: Vec<u16> = joints
-                .iter()
-                .zip(&weights)
-                .flat_map(|(j, w)| j.iter().zip(w).filter(|(_, w)| **w > 0.0).map(|(j, _)| *j))
-                .collect();
-            used.sort_unstable();
-            used.dedup();
-            region_joints.push(used);
-            local.push(Influences { joints, weights });
-        }
-        let binding = SkinBinding {
-            kinds,
-            local,
-            region_joints,
-            inverse_bindposes: inverse_bindposes.to_vec(),
-            more_than_two: decomposition.more_than_two,
-            normalised,
-        };
-        let mut asset = Self::from_regions(regions);
-        asset.skin = Some(Arc::new(binding));
-        Ok(asset)
+        let baked = BakedMesh::build_skinned(mesh, inverse_bindposes, Vec::new(), rigid_delta)?;
+        Self::from_baked(baked)
     }
 
     /// The skeleton binding, for a mesh built by [`from_skinned`](Self::from_skinned).
