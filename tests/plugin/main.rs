@@ -1,8 +1,10 @@
 //! The Bevy plugin without a GPU, in one test binary (Bevy links once): `models` (region
 //! children, the budget split, despawn, run-time changes) and `skinned` (skinned characters
-//! against reference linear blend skinning) and `view_dependent` (models refined per frame).
+//! against reference linear blend skinning) and `view_dependent` (models refined per frame)
+//! and `baked` (`.mrm` files through the asset server).
 #![cfg(feature = "bevy")]
 
+mod baked;
 mod models;
 mod skinned;
 mod view_dependent;

@@ -24,7 +24,7 @@ const ROBOT: &str = "characters/RobotExpressive.glb";
 const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets");
 const MANNEQUIN: &str = "mannequin.glb";
 
-fn app(budget: u32, root: &str) -> App {
+pub(crate) fn app(budget: u32, root: &str) -> App {
     let mut app = App::new();
     app.add_plugins((
         DefaultPlugins

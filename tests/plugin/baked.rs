@@ -1,0 +1,137 @@
+//! Baked `.mrm` files through Bevy's asset server: the loader's first and labeled assets,
+//! and a glTF character whose `MultiresScene` loads its assets from the file it was baked
+//! into instead of building them (falling back to building when the file is missing).
+
+use super::skinned::app;
+use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::mesh::load_gltf_primitives;
+use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, MrmFile};
+use bevy_aslod::multires::BuildOptions;
+use bevy_aslod::plugin::{MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels};
+use bevy_aslod::regions::Partition;
+use std::path::PathBuf;
+
+const ROBOT: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared/testdata/characters/RobotExpressive.glb"
+);
+
+/// A folder for the asset server with the robot (linked, not copied) and `robot.mrm` baked
+/// from it the way `aslod bake` does.
+fn asset_folder() -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("aslod-baked-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let link = dir.join("robot.glb");
+    if !link.exists() {
+        std::os::unix::fs::symlink(ROBOT, &link).unwrap();
+    }
+    let (primitives, skins) = load_gltf_primitives(std::path::Path::new(ROBOT)).unwrap();
+    let meshes = primitives
+        .into_iter()
+        .map(|p| {
+            let baked = match p.skin {
+                Some(s) => BakedMesh::build_skinned(
+                    &p.mesh,
+                    &skins[s].inverse_bind_matrices,
+                    skins[s].joint_names.clone(),
+                    bevy_aslod::skin::DEFAULT_RIGID_DELTA,
+                ),
+                None => BakedMesh::build(
+                    &p.mesh,
+                    &Partition::grid(&p.mesh, Default::default(), 1, 1).unwrap(),
+                    &BuildOptions::default(),
+                ),
+            };
+            (p.key, baked.unwrap())
+        })
+        .collect();
+    let file = MrmFile {
+        build: BuildInfo {
+            source_name: "RobotExpressive.glb".into(),
+            source_hash: mrm::source_hash(&std::fs::read(ROBOT).unwrap()),
+            partition: "single".into(),
+            writer: "tests/plugin/baked.rs".into(),
+            rigid_delta: Some(bevy_aslod::skin::DEFAULT_RIGID_DELTA),
+            options: BuildOptions::default(),
+        },
+        meshes,
+    };
+    std::fs::write(dir.join("robot.mrm"), mrm::write(&file)).unwrap();
+    dir
+}
+
+/// Spawns the robot as a `MultiresScene` with `scene`, runs until it is converted and
+/// returns the handles of its models.
+fn convert(app: &mut App, scene: MultiresScene) -> Vec<Handle<MultiresMesh>> {
+    let gltf = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("robot.glb"));
+    let root = app
+        .world_mut()
+        .spawn((WorldAssetRoot(gltf), scene, Transform::default()))
+        .id();
+    for _ in 0..3_000 {
+        app.update();
+        if let Some(models) = app.world().get::<MultiresSceneModels>(root) {
+            let models: Vec<Entity> = models.models().collect();
+            assert!(!models.is_empty());
+            return models
+                .iter()
+                .map(|&e| app.world().get::<MultiresModel>(e).unwrap().0.clone())
+                .collect();
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    panic!("the scene was not converted");
+}
+
+#[test]
+fn a_baked_scene_loads_its_assets_instead_of_building() {
+    let dir = asset_folder();
+    let mut app = app(20_000, dir.to_str().unwrap());
+    let handles = convert(&mut app, MultiresScene::default().with_baked("robot.mrm"));
+    for handle in &handles {
+        let path = handle
+            .path()
+            .expect("loaded from the file, not built")
+            .to_string();
+        assert!(path.starts_with("robot.mrm#Mesh"), "{path}");
+    }
+    let assets = app.world().resource::<Assets<MultiresMesh>>();
+    assert!(
+        handles
+            .iter()
+            .any(|h| assets.get(h).unwrap().skin().is_some())
+    );
+
+    // The file's first asset is the default one.
+    let first: Handle<MultiresMesh> = app.world().resource::<AssetServer>().load("robot.mrm");
+    for _ in 0..1_000 {
+        app.update();
+        if app
+            .world()
+            .resource::<Assets<MultiresMesh>>()
+            .contains(&first)
+        {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let assets = app.world().resource::<Assets<MultiresMesh>>();
+    let first = assets.get(&first).expect("robot.mrm loads");
+    assert!(first.max_triangles() > 0);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_missing_baked_file_builds_instead() {
+    let dir = asset_folder();
+    let mut app = app(20_000, dir.to_str().unwrap());
+    let handles = convert(&mut app, MultiresScene::default().with_baked("missing.mrm"));
+    assert!(
+        handles.iter().all(|h| h.path().is_none()),
+        "built, not loaded"
+    );
+}
