@@ -103,7 +103,8 @@ fn main() {
         "| mesh | triangles | build | load | bytes | build / load | load / bytes | file | B/tri | source | source B/tri |"
     );
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let cases: [(&str, fn(&Path) -> MrmFile); 2] = [
+    type Build = fn(&Path) -> MrmFile;
+    let cases: [(&str, Build); 2] = [
         ("meshes/stanford-bunny.obj", build_obj),
         ("characters/RobotExpressive.glb", build_gltf),
     ];

@@ -94,7 +94,7 @@ fn main() {
             brightness: 500.0,
             ..default()
         })
-        .insert_resource(Class::new(&args, file))
+        .insert_resource(Class::new(&args, &asset_root, file))
         .add_systems(Startup, setup)
         .add_systems(Update, (bind_clip, bind_players, place_dancers).chain());
     if args.headless {
@@ -262,6 +262,8 @@ struct Label;
 #[derive(Resource)]
 struct Class {
     file: String,
+    /// How each dancer becomes multiresolution (from the baked file beside the model).
+    scene: MultiresScene,
     clip_name: Option<String>,
     gltf: Handle<Gltf>,
     /// The clip's graph, node and length in seconds, once loaded.
@@ -278,8 +280,9 @@ struct Class {
 }
 
 impl Class {
-    fn new(args: &Args, file: String) -> Self {
+    fn new(args: &Args, root: &Path, file: String) -> Self {
         Self {
+            scene: common::multires_scene(root, &file),
             file,
             clip_name: args.clip.clone(),
             gltf: Handle::default(),
@@ -393,7 +396,7 @@ fn setup(
             commands
                 .spawn((
                     WorldAssetRoot(scene.clone()),
-                    MultiresScene::default(),
+                    class.scene.clone(),
                     Transform::from_translation(at),
                     // Shown once measured and scaled (`place_dancers`).
                     Visibility::Hidden,

@@ -22,8 +22,10 @@ fn main() -> AppExit {
 
 fn setup(mut commands: Commands, assets: Res<AssetServer>) {
     let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(MODEL));
-    // `MultiresScene` makes every mesh of the glTF scene multiresolution when it spawns.
-    commands.spawn((WorldAssetRoot(scene), MultiresScene::default()));
+    // `MultiresScene` makes every mesh of the glTF scene multiresolution when it spawns,
+    // here from the file baked beside it (`aslod bake`), so nothing is built at start-up.
+    let multires = MultiresScene::default().with_baked("mannequin.mrm");
+    commands.spawn((WorldAssetRoot(scene), multires));
     let sun = Transform::from_xyz(2.0, 4.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y);
     let eye = Transform::from_xyz(0.0, 1.0, 3.0).looking_at(Vec3::Y, Vec3::Y);
     commands.spawn((DirectionalLight::default(), sun));

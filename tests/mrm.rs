@@ -520,3 +520,28 @@ fn a_progressive_file_is_not_read_as_assets() {
     let err = mrm::read(&bytes).unwrap_err();
     assert!(err.to_string().contains("progressive"), "{err}");
 }
+
+/// `assets/mannequin.mrm`, which the examples load, is baked from `assets/mannequin.glb`
+/// (a stale one would still load, but not the model beside it).
+#[test]
+fn the_committed_mannequin_is_baked_from_the_committed_glb() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/");
+    let glb = std::fs::read(format!("{dir}mannequin.glb")).unwrap();
+    let bytes = std::fs::read(format!("{dir}mannequin.mrm")).unwrap();
+    let file = mrm::read(&bytes).expect("assets/mannequin.mrm loads");
+    assert_eq!(
+        file.build.source_hash,
+        mrm::source_hash(&glb),
+        "assets/mannequin.mrm is stale: `cargo run --release --no-default-features --features cli \
+         --bin aslod -- bake assets/mannequin.glb -o assets/mannequin.mrm`"
+    );
+    let (key, mannequin) = &file.meshes[0];
+    assert_eq!(key, "Mesh0/Primitive0");
+    let skin = mannequin.skin.as_ref().expect("skinned");
+    assert_eq!(skin.inverse_bindposes.len(), 10);
+    assert_eq!(
+        mannequin.regions.regions().len(),
+        19,
+        "10 rigid and 9 deformable regions"
+    );
+}

@@ -76,6 +76,18 @@ pub fn split_model_path(model: &Path) -> Result<(PathBuf, String), String> {
     Ok((root, file))
 }
 
+/// The `MultiresScene` for the glTF `file` in the asset folder `root`: loading its assets
+/// from the `.mrm` file baked beside it (`aslod bake model.glb -o model.mrm`) when there is
+/// one, building them otherwise.
+pub fn multires_scene(root: &Path, file: &str) -> bevy_aslod::plugin::MultiresScene {
+    let scene = bevy_aslod::plugin::MultiresScene::default();
+    let baked = Path::new(file).with_extension("mrm");
+    match root.join(&baked).is_file() {
+        true => scene.with_baked(baked.to_string_lossy()),
+        false => scene,
+    }
+}
+
 /// The clip called `name` (or the first one) of a loaded glTF, or an error that lists the
 /// clips there are.
 pub fn pick_clip(

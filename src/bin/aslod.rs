@@ -485,7 +485,11 @@ fn bake(args: &BakeArgs) -> CliResult {
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
             source_hash: mrm::source_hash(&source),
-            partition: args.regions.clone(),
+            partition: if any_skin {
+                format!("{} (unskinned), by influence (skinned)", args.regions)
+            } else {
+                args.regions.clone()
+            },
             writer: format!("aslod bake {}", env!("CARGO_PKG_VERSION")),
             rigid_delta: any_skin.then_some(args.rigid_delta),
             options,

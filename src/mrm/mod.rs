@@ -1,39 +1,88 @@
-//! The `.mrm` file (Hoxha's MR-model): a multiresolution mesh baked once and loaded without
-//! rebuilding. **Partial:** a file holds one [`ProgressiveMesh`] (its vertex table with every
-//! attribute, its records, its simplification table and its view-dependent data), which
-//! `aslod bake` writes and `aslod info` lists; regions, the skin binding and a Bevy asset
-//! loader are not written yet.
+//! The `.mrm` file (Hoxha's MR-model): multiresolution assets baked once and loaded without
+//! rebuilding. A file holds either **assets** ([`MrmFile`]: each a [`BakedMesh`], everything
+//! the plugin's `MultiresMesh` is made of, under a key) or, as every version 1 file does,
+//! **one progressive mesh** ([`read_progressive`]). `aslod bake` writes the first kind,
+//! `aslod info` lists either, and the plugin's `MrmLoader` loads assets through Bevy's asset
+//! server.
 //!
 //! ```
 //! use bevy_aslod::mesh::IndexedMesh;
-//! use bevy_aslod::mrm;
-//! use bevy_aslod::multires::{BuildOptions, ProgressiveMesh};
+//! use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, MrmFile};
+//! use bevy_aslod::multires::BuildOptions;
+//! use bevy_aslod::regions::Partition;
 //!
-//! let (mesh, _) = IndexedMesh::load("../shared/testdata/meshes/cow.obj")?;
-//! let cow = ProgressiveMesh::build(&mesh, &BuildOptions::default())?;
-//! let bytes = mrm::write_progressive(&cow);
-//! assert_eq!(mrm::read_progressive(&bytes)?, cow);
+//! let path = "../shared/testdata/meshes/cow.obj";
+//! let (mesh, _) = IndexedMesh::load(path)?;
+//! let partition = Partition::clusters(&mesh, 8)?;
+//! let options = BuildOptions::default();
+//! let cow = BakedMesh::build(&mesh, &partition, &options)?;
+//! let file = MrmFile {
+//!     build: BuildInfo {
+//!         source_name: "cow.obj".into(),
+//!         source_hash: mrm::source_hash(&std::fs::read(path)?),
+//!         partition: "clusters:8".into(),
+//!         writer: "a doctest".into(),
+//!         rigid_delta: None,
+//!         options,
+//!     },
+//!     meshes: vec![("Mesh0/Primitive0".into(), cow)],
+//! };
+//! let bytes = mrm::write(&file);
+//! assert_eq!(mrm::read(&bytes)?, file);
 //! // A damaged file is an error that names where, never a wrong mesh.
 //! let mut damaged = bytes.clone();
 //! damaged[bytes.len() / 2] ^= 0x10;
-//! assert!(mrm::read_progressive(&damaged).is_err());
+//! assert!(mrm::read(&damaged).is_err());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! # Layout (format version 1)
+//! # Layout (format version 2)
 //!
-//! Little-endian throughout. The header and the section table:
+//! Little-endian throughout. Every file is a **container**, and so are the assets and
+//! regions inside it: a header and a section table,
 //!
 //! | offset | bytes | field |
 //! |---:|---:|---|
 //! | 0 | 8 | magic `ASLODMRM` |
-//! | 8 | 4 | format version (`u32`, this reader: [`FORMAT_VERSION`]) |
+//! | 8 | 4 | format version (`u32`, this reader: [`FORMAT_VERSION`]; nested containers carry the file's) |
 //! | 12 | 4 | section count `n` |
-//! | 16 | 24 × `n` | per section: tag (4 ASCII bytes), CRC-32 of its bytes (`u32`), offset in the file (`u64`), length (`u64`) |
+//! | 16 | 24 × `n` | per section: tag (4 ASCII bytes), CRC-32 of its bytes (`u32`), offset from the container's start (`u64`), length (`u64`) |
 //! | 16 + 24`n` | 4 | CRC-32 of every byte before it |
 //!
-//! Then the sections, each starting where the previous one ends, the last one ending at the
-//! end of the file, in this order (each at most once):
+//! then the sections, each starting where the previous one ends, the last one ending at the
+//! end of the container, in the order listed below (each at most once). A string is its
+//! length in bytes (`u32`) and UTF-8.
+//!
+//! **A file of assets** (its first section is `SRC `):
+//!
+//! | tag | contents |
+//! |---|---|
+//! | `SRC ` | source hash (`u64`, FNV-1a of the source file); source name, partition, writer (strings); skinned (`u8`) and δ (`f32`); the [`BuildOptions`]: `min_triangles` (`u64`), `max_error` (`f32`), `border_weight`, `min_normal_cos`, `regularization`, `local_weight`, `weight_exponent` (`f64` each), `view_dependent` (`u8`), `pair_distance` (`f32`) |
+//! | `KEYS` | asset count `A` (`u32`); per asset: its key (string) and its container's length (`u64`) |
+//! | `ASET` | the `A` asset containers, one after the other |
+//!
+//! **An asset** (a container in `ASET`):
+//!
+//! | tag | required | contents |
+//! |---|---|---|
+//! | `HEAD` | yes | source vertex count `V` (`u32`); attribute flags (`u8`, as `MESH` below); skinned (`u8`); refinement data (`u8`); a zero byte; region count `R` (`u32`) |
+//! | `POS ` … `WGT ` | as below | the source's vertex table (every region's local table is a subset of it) |
+//! | `PART` | yes | `V` region ids (`u32`), every region holding a vertex |
+//! | `OBBS` | yes | `R` boxes: centre, three axes (columns), half extents (15 × `f32`) |
+//! | `RGNS` | yes | `R` (`u32`), `R` container lengths (`u64`), then the `R` region containers |
+//! | `SKIN` | flag | joint count `J` (`u32`); `R` (`u32`); per region its kind (`u8`: 0 rigid, 1 deformable), a zero byte and two bones (`u16`; a rigid one's second is 0); `J` inverse bind matrices (16 × `f32`, by columns); vertices with over two influences and vertices normalised (`u32` each); joint name count (`u32`: 0 or `J`) and the names (strings) |
+//! | `VARI` | flag | the whole mesh as one progressive mesh with view data: a nested container laid out as a progressive-mesh file (below) |
+//!
+//! **A region** (a container in `RGNS`):
+//!
+//! | tag | required | contents |
+//! |---|---|---|
+//! | `RGN ` | yes | local vertex count `L`, own vertices, base triangles, index count `I`, steps `S`, corner records `C`, pairs `P` (`u32` each); layout, view data and two zero bytes (`u8` each, as `MESH`); bounds of its own vertices (min, max: 6 × `f32`); counts of border triangles, fin-prone triangles, neighbours, position links and front events (`u32` each) |
+//! | `GLOB` | yes | `L` source vertex ids (`u32`): local vertex → source vertex |
+//! | `IDX ` … `VIEW` | as below | the region's records over its local vertices |
+//! | `LIST` | yes | border triangles, fin-prone triangles, neighbour regions, position links (`u32` each, in that order); front events (step, region, corner, before, after: 5 × `u32`) |
+//!
+//! **A progressive mesh** (its first section is `MESH`; every version 1 file):
 //!
 //! | tag | required | contents |
 //! |---|---|---|
@@ -47,19 +96,21 @@
 //! | `STEP` | yes | `S` step headers, `corners << 4 \| pairs << 2 \| removed` (`u16` narrow, `u32` wide) |
 //! | `CORN` | yes | `C` corner records, `corner << 1 \| pair` (3 bytes narrow, `u32` wide) |
 //! | `PAIR` | yes | `P` `[old, new]` vertex pairs (2 × `u16` narrow, 2 × `u32` wide) |
-//! | `ERRS` | yes | the simplification table: `S` errors relative to the diagonal, the top 16 bits of an `f32`, monotone |
+//! | `ERRS` | yes | the simplification table (Hoxha's value per collapse): `S` errors relative to the diagonal, the top 16 bits of an `f32`, monotone |
 //! | `VIEW` | flag | diagonal (`f32`); vertex width (`u8`: 1 for `u16`); `S` `[u, w]` pairs; `S` sphere centre offsets (3 × `i8`); `S` radii and `S` errors (`u16`, as `ERRS`); `S` normal cones (2 octahedral bytes and a half-angle byte) |
 //!
 //! Reading checks, before anything is built: the magic, the version (a newer one is
-//! [`MrmError::NewerVersion`]), both kinds of checksum, the order and contiguity of the
-//! sections, that every count fits its section (so nothing is allocated beyond what the
-//! file's size justifies), and the records themselves (every index and pair names a vertex,
-//! every step removes live triangles and rewrites corners of the triangles that stay, every
-//! stored bound is finite), so a mesh read from any file is memory-safe for every polygon
-//! cache and refinement. What is not re-derived: that the view data's bounds nest (a file
-//! whose bounds were edited refines crack-free but not monotonically, so
+//! [`MrmError::NewerVersion`]), every checksum, the order and contiguity of the sections,
+//! that every count fits its section (so nothing is allocated beyond what the file's size
+//! justifies), and the records themselves (every index and pair names a vertex, every step
+//! removes live triangles and rewrites corners of the triangles that stay, every stored
+//! bound is finite; every region, border triangle, front event and position link a region
+//! names is in range), so assets read from any file are memory-safe for every polygon cache,
+//! region cache and refinement. What is not re-derived: that the view data's bounds nest (a
+//! file whose bounds were edited refines crack-free but not monotonically, so
 //! [`ToleranceSearch`](crate::refine::ToleranceSearch) may then report a level over its
-//! count) and that the errors are the build's.
+//! count), that the errors are the build's, and that a file's borders and fronts are the
+//! ones its build found (edited ones stay in range but may crack).
 
 mod asset;
 mod container;
