@@ -5,7 +5,7 @@ mod common;
 
 use bevy_aslod::distance::{DistanceOptions, MeshRef, mesh_distance};
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};
-use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
+use bevy_aslod::multires::{BuildOptions, CollapseOperator, PolygonCache, ProgressiveMesh};
 use common::*;
 use glam::Vec3;
 use proptest::prelude::*;
@@ -13,6 +13,18 @@ use std::collections::HashMap;
 
 fn build(mesh: &IndexedMesh) -> ProgressiveMesh {
     ProgressiveMesh::build(mesh, &BuildOptions::default()).expect("valid mesh")
+}
+
+fn build_with(mesh: &IndexedMesh, operator: CollapseOperator) -> ProgressiveMesh {
+    let options = BuildOptions::default().with_operator(operator);
+    ProgressiveMesh::build(mesh, &options).expect("valid mesh")
+}
+
+fn operator() -> impl Strategy<Value = CollapseOperator> {
+    prop_oneof![
+        Just(CollapseOperator::Edge),
+        Just(CollapseOperator::Triangle)
+    ]
 }
 
 /// A flat 2 x 2 square of unit cells, fanned around its centre:
@@ -335,8 +347,9 @@ proptest! {
     fn cache_is_exact_after_any_walk(
         (mesh, closed) in arb_mesh(),
         walk in prop::collection::vec(0.0f64..=1.0, 1..12),
+        operator in operator(),
     ) {
-        let pm = build(&mesh);
+        let pm = build_with(&mesh, operator);
         let mut cache = PolygonCache::new(&pm);
         let counts = pm.level_triangle_counts();
         for f in walk {
@@ -359,8 +372,11 @@ proptest! {
     }
 
     #[test]
-    fn every_level_is_closed_and_no_collapse_flips_a_face((mesh, closed) in arb_mesh()) {
-        let pm = build(&mesh);
+    fn every_level_is_closed_and_no_collapse_flips_a_face(
+        (mesh, closed) in arb_mesh(),
+        operator in operator(),
+    ) {
+        let pm = build_with(&mesh, operator);
         let mut cache = PolygonCache::new(&pm);
         loop {
             let before = cache.indices().to_vec();

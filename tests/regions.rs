@@ -3,7 +3,7 @@
 mod common;
 
 use bevy_aslod::mesh::IndexedMesh;
-use bevy_aslod::multires::BuildOptions;
+use bevy_aslod::multires::{BuildOptions, CollapseOperator};
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh, triangle_owner};
 use common::*;
 use glam::Vec3;
@@ -148,6 +148,27 @@ fn coarse_region_beside_full_neighbour_stays_closed() {
     let assembled = assemble(&regions, &mut caches);
     assert!(assembled.len() < mesh.indices.len());
     assert_closed(&mesh.positions, &assembled, "alternating levels");
+}
+
+#[test]
+fn triangle_collapses_keep_regions_closed_at_any_mix_of_levels() {
+    let mesh = sphere(16, 24, &[0.0, 0.04, -0.02, 0.01], true);
+    let partition = Partition::clusters(&mesh, 6).unwrap();
+    let options = BuildOptions::default().with_operator(CollapseOperator::Triangle);
+    let regions = RegionMesh::build(&mesh, &partition, &options).expect("valid mesh");
+    let mut x = 0x2545_F491_4F6C_DD1Du64;
+    for mix in 0..30 {
+        let mut caches = RegionCaches::new(&regions);
+        for (r, region) in regions.regions().iter().enumerate() {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let count = (x % (region.max_triangles() as u64 + 1)) as usize;
+            caches.set_triangle_count(&regions, r, count);
+        }
+        let assembled = assemble(&regions, &mut caches);
+        assert_closed(&mesh.positions, &assembled, &format!("mix {mix}"));
+    }
 }
 
 #[test]

@@ -4,7 +4,9 @@ use bevy_aslod::distance::{Distance, DistanceOptions, MeshRef, mesh_distance};
 use bevy_aslod::mannequin::{MannequinOptions, generate};
 use bevy_aslod::mesh::{IndexedMesh, write_obj, write_obj_groups};
 use bevy_aslod::mrm;
-use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh, indexed_mesh_bytes};
+use bevy_aslod::multires::{
+    BuildOptions, CollapseOperator, PolygonCache, ProgressiveMesh, indexed_mesh_bytes,
+};
 use bevy_aslod::refine::{self, Criteria, ScreenSpaceError, VariableMesh, View};
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh};
 use clap::{Parser, Subcommand};
@@ -168,6 +170,17 @@ struct CompareArgs {
     /// Our build's `BuildOptions::weight_exponent` (default: the crate's default).
     #[arg(long)]
     weight_exponent: Option<f64>,
+    /// Our build's collapse operator: `edge` or Hoxha's `triangle` (default: the crate's).
+    #[arg(long, value_parser = parse_operator)]
+    operator: Option<CollapseOperator>,
+}
+
+fn parse_operator(s: &str) -> Result<CollapseOperator, String> {
+    match s {
+        "edge" => Ok(CollapseOperator::Edge),
+        "triangle" => Ok(CollapseOperator::Triangle),
+        _ => Err(format!("{s:?}: expected edge or triangle")),
+    }
 }
 
 fn main() -> ExitCode {
@@ -856,6 +869,9 @@ fn compare(args: &CompareArgs) -> CliResult {
     }
     if let Some(e) = args.weight_exponent {
         build_options.weight_exponent = e;
+    }
+    if let Some(o) = args.operator {
+        build_options.operator = o;
     }
 
     let (ours_ms, pm) = time_ms(runs, || ProgressiveMesh::build(&mesh, &build_options));

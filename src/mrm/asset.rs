@@ -4,7 +4,7 @@ use super::container::{self, Reader, Section};
 use super::progressive::{self, Counts, section};
 use super::{BakeError, BakedMesh, BakedSkin, BuildInfo, FORMAT_VERSION, MrmError, MrmFile};
 use crate::budget::Obb;
-use crate::multires::BuildOptions;
+use crate::multires::{BuildOptions, CollapseOperator};
 use crate::regions::{FrontEvent, Partition, Region, RegionMesh, subset};
 use crate::skin::SkinRegionKind;
 use glam::{Mat3, Mat4, Vec3};
@@ -102,6 +102,10 @@ fn build_bytes(b: &BuildInfo) -> Vec<u8> {
     }
     out.push(u8::from(o.view_dependent));
     out.extend_from_slice(&o.pair_distance.to_le_bytes());
+    out.push(match o.operator {
+        CollapseOperator::Edge => 0,
+        CollapseOperator::Triangle => 1,
+    });
     out
 }
 
@@ -313,6 +317,16 @@ fn read_build(s: Section<'_>) -> Result<BuildInfo, MrmError> {
         weight_exponent: r.f64()?,
         view_dependent: r.u8()? != 0,
         pair_distance: r.f32()?,
+        operator: match r.u8()? {
+            0 => CollapseOperator::Edge,
+            1 => CollapseOperator::Triangle,
+            _ => {
+                return Err(r.invalid(
+                    r.offset() as usize - 1 - s.offset as usize,
+                    "unknown collapse operator",
+                ));
+            }
+        },
     };
     r.finish()?;
     Ok(BuildInfo {

@@ -103,6 +103,30 @@ pub struct BuildOptions {
     /// only ([`ProgressiveMesh::build`]). `0.0` turns it off; negative or non-finite values
     /// count as `0.0` (with a warning). Default: `0.0`.
     pub pair_distance: f32,
+    /// The simplification operator: edge collapses, or Hoxha's triangle collapses (three
+    /// vertices to one, four triangles removed; [`CollapseOperator`]). Default:
+    /// [`CollapseOperator::Edge`] (see `docs/performance.md`, "Collapse operators").
+    pub operator: CollapseOperator,
+}
+
+/// The simplification operator of a build ([`BuildOptions::operator`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum CollapseOperator {
+    /// Half-edge collapses: one vertex onto a neighbour, two triangles removed (one on an
+    /// open border), the cheapest first.
+    #[default]
+    Edge,
+    /// Hoxha et al.'s triangle collapse (section 2.2): a triangle's three vertices become one
+    /// of them and the triangle goes with its three neighbours. Ranked by its cheapest edge
+    /// `u → w`; the third vertex then follows onto `w` (of the two triangles on the edge, the
+    /// apex that costs less, if its collapse onto `w` passes every check an edge collapse
+    /// must). The survivor `w` is thus the original vertex the cheapest of the triangle's
+    /// moves goes to, and every level uses a subset of the original vertices. It is recorded
+    /// as the two edge collapses it is made of, so it stays exactly reversible, its halfway
+    /// level is a valid level too, and it keeps every invariant of edge collapses (closed
+    /// stays closed, no fold-over, crack-free regions). Where neither apex may follow (a
+    /// border ear, a pinned vertex), the step stays an edge collapse.
+    Triangle,
 }
 
 with_setters!(BuildOptions {
@@ -115,6 +139,7 @@ with_setters!(BuildOptions {
     weight_exponent: f64 => with_weight_exponent,
     view_dependent: bool => with_view_dependent,
     pair_distance: f32 => with_pair_distance,
+    operator: CollapseOperator => with_operator,
 });
 
 impl Default for BuildOptions {
@@ -129,6 +154,7 @@ impl Default for BuildOptions {
             weight_exponent: 0.25,
             view_dependent: false,
             pair_distance: 0.0,
+            operator: CollapseOperator::Edge,
         }
     }
 }
@@ -1535,26 +1561,95 @@ impl<'a> Builder<'a> {
                 break;
             }
             self.perform(u, w, error);
-            let mut scratch = std::mem::take(&mut self.scratch);
-            self.neighbors_into(w, &mut ring, &mut scratch);
-            self.scratch = scratch;
-            self.rank(w, false, Some(&ring));
-            for i in 0..self.moved_ring.len() {
-                let p = self.moved_ring[i];
-                if p != u && p != w && !ring.contains(&p) {
-                    self.full_rank_due[p as usize] = true;
-                }
-            }
-            for &x in &ring {
-                self.rerank(x, u, w);
-                #[cfg(test)]
-                self.check_rerank(x);
+            self.rerank_after(u, w, &mut ring);
+            if self.options.operator == CollapseOperator::Triangle
+                && self.live_triangles > self.options.min_triangles
+                && let Some((x, error)) = self.apex(w)
+                && (error.sqrt() * self.inv_diagonal) as f32 <= self.options.max_error
+            {
+                self.perform(x, w, error);
+                self.rerank_after(x, w, &mut ring);
             }
             if self.collapses.len().is_multiple_of(4096) {
                 progress(total - self.live_triangles, total);
             }
         }
         progress(total - self.live_triangles, total);
+    }
+
+    /// Re-ranks what collapsing `u` onto `w` changed: `w` and its ring (into `ring`) now,
+    /// the other vertices around `u` at their next rank.
+    fn rerank_after(&mut self, u: u32, w: u32, ring: &mut Vec<u32>) {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        self.neighbors_into(w, ring, &mut scratch);
+        self.scratch = scratch;
+        self.rank(w, false, Some(ring));
+        for i in 0..self.moved_ring.len() {
+            let p = self.moved_ring[i];
+            if p != u && p != w && !ring.contains(&p) {
+                self.full_rank_due[p as usize] = true;
+            }
+        }
+        for &x in ring.iter() {
+            self.rerank(x, u, w);
+            #[cfg(test)]
+            self.check_rerank(x);
+        }
+    }
+
+    /// The triangle collapse's second half, after the last collapse moved a vertex onto
+    /// `w`: the apex of one of the triangles it removed, onto `w`, with its table error, when
+    /// one may go (the cheaper of two). Every rule of [`choose`](Self::choose) applies, and
+    /// [`is_valid`](Self::is_valid) has filled the scratch map for the chosen one.
+    fn apex(&mut self, w: u32) -> Option<(u32, f64)> {
+        let last = self.collapses.last()?;
+        let mut apexes = [u32::MAX; 2];
+        for (k, &t) in last.removed[..last.removed_count as usize]
+            .iter()
+            .enumerate()
+        {
+            apexes[k] = self.tris[t as usize]
+                .iter()
+                .map(|&v| self.pos[v as usize])
+                .find(|&p| p != last.moved[0] && p != w)
+                .unwrap_or(u32::MAX);
+        }
+        let mut eligible: Vec<(f64, u32)> = Vec::with_capacity(2);
+        let mut fan = std::mem::take(&mut self.scratch.fan);
+        for x in apexes {
+            if x == u32::MAX
+                || !matches!(self.kind[x as usize], Kind::Manifold | Kind::Border)
+                || self.adj[x as usize].is_empty()
+                || 3 * self.adj[x as usize].len() > usize::from(u16::MAX)
+            {
+                continue;
+            }
+            // The front rule of `choose`.
+            if !self.anchor.is_empty()
+                && self.touches_anchor(x, None)
+                && !self.touches_anchor(x, Some(w))
+                && self.touches_anchor(w, None)
+            {
+                continue;
+            }
+            let Some(q) = self.quadric_cost(x, w) else {
+                continue;
+            };
+            fan.clear();
+            if self.local_weight > 0.0 {
+                self.fan_into(x, &mut fan);
+            }
+            eligible.push((self.cost(x, w, q, &fan), x));
+        }
+        self.scratch.fan = fan;
+        // The cheaper apex first; the other when the cheaper one may not go.
+        eligible.sort_unstable_by(|a, b| self.order(*a, *b));
+        for (cost, x) in eligible {
+            if self.is_valid(x, w) {
+                return Some((x, self.table_error(x, w, cost)));
+            }
+        }
+        None
     }
 
     /// Phase 6: removal-order layout and packed records.

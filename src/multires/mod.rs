@@ -52,7 +52,7 @@ mod index;
 mod quadric;
 pub(crate) mod records;
 
-pub use build::BuildOptions;
+pub use build::{BuildOptions, CollapseOperator};
 pub use cache::PolygonCache;
 pub use index::CacheIndex;
 

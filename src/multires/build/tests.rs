@@ -1,7 +1,7 @@
 //! Unit tests of the build: the adjacency arena, incremental re-ranks, costs and options,
 //! edge classes and local errors.
 
-use super::{BuildOptions, Builder, Constraints, Scratch, build, settle};
+use super::{BuildOptions, Builder, CollapseOperator, Constraints, Scratch, build, settle};
 use crate::mesh::{IndexedMesh, test_grid};
 use glam::Vec3;
 
@@ -492,4 +492,44 @@ fn regularization_collapses_short_edges_first() {
     };
     assert_eq!(run(1e-7), 0, "a long edge collapsed among the first 20");
     assert!(run(0.0) > 0, "the test needs the regularization to matter");
+}
+
+/// With the triangle operator most steps are the second half of a triangle collapse: the
+/// vertex that goes is an apex of a triangle the step before removed, and it goes onto the
+/// same vertex. With edge collapses alone that is the exception.
+#[test]
+fn triangle_collapses_follow_their_edge_onto_the_same_vertex() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/testdata/meshes");
+    let (mesh, _) = IndexedMesh::load(dir.join("cow.obj")).unwrap();
+    let share = |operator| {
+        let options = BuildOptions::default().with_operator(operator);
+        let built = build(
+            &mesh,
+            &options,
+            &Constraints::default(),
+            mesh.triangle_count(),
+            &mut |_, _| {},
+        )
+        .unwrap();
+        // Each step's target position (moves are attribute vertices: seams move in pairs).
+        let pos = crate::mesh::weld_positions(&mesh.positions).remap;
+        let mut targets: Vec<(u32, u32)> = built
+            .moves
+            .iter()
+            .map(|&(step, _, new)| (step, pos[new as usize]))
+            .collect();
+        targets.dedup();
+        let followed = targets
+            .windows(2)
+            .filter(|w| w[1].0 == w[0].0 + 1 && w[1].1 == w[0].1)
+            .count();
+        followed as f64 / targets.len() as f64
+    };
+    let (edge, triangle) = (
+        share(CollapseOperator::Edge),
+        share(CollapseOperator::Triangle),
+    );
+    println!("steps that finish a triangle: edge {edge:.3}, triangle {triangle:.3}");
+    assert!(triangle > 0.3, "{triangle}");
+    assert!(triangle > 2.0 * edge, "{triangle} against {edge}");
 }
