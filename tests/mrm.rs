@@ -135,6 +135,41 @@ fn a_version_1_file_still_loads() {
     VariableMesh::new(pm).expect("its view data");
 }
 
+/// A file of format version 2, assets baked by this crate ([`small_assets`]; written when
+/// `MRM_WRITE_V2` is set and the format is still version 2): it must keep loading.
+const V2: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/small_v2.mrm");
+
+#[test]
+fn a_version_2_file_still_loads() {
+    if std::env::var_os("MRM_WRITE_V2").is_some() && FORMAT_VERSION == 2 {
+        std::fs::write(V2, mrm::write(&small_assets())).unwrap();
+    }
+    let bytes = std::fs::read(V2).expect("the committed version 2 file");
+    assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 2);
+    let file = mrm::read(&bytes).expect("a version 2 file loads");
+    assert_eq!(file.meshes.len(), 2);
+    let (plain, skinned) = (&file.meshes[0].1, &file.meshes[1].1);
+    assert!(plain.variable.is_some() && skinned.skin.is_some());
+    // Every region takes every level and stays closed (the sphere is closed).
+    let mesh = small();
+    for baked in [plain, skinned] {
+        let regions = &baked.regions;
+        let mut caches = RegionCaches::new(regions);
+        for step in 0..=4 {
+            let mut all = Vec::new();
+            for (r, region) in regions.regions().iter().enumerate() {
+                caches.set_triangle_count(regions, r, region.max_triangles() * step / 4);
+            }
+            for r in 0..regions.regions().len() {
+                let mut out = Vec::new();
+                caches.write_global_indices(regions, r, &mut out);
+                all.extend(out);
+            }
+            common::assert_closed(&mesh.positions, &all, "a level of the version 2 file");
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Damaged files.
 
