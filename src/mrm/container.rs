@@ -15,6 +15,12 @@ pub(crate) fn crc32(bytes: &[u8]) -> u32 {
     crc32fast::hash(bytes)
 }
 
+/// Whether `bytes` have the checksum `crc`. Always under `cargo fuzz` (`cfg(fuzzing)`), so
+/// the fuzzer reaches the checks behind the checksums, which it cannot forge.
+fn checksum_ok(bytes: &[u8], crc: u32) -> bool {
+    cfg!(fuzzing) || crc32(bytes) == crc
+}
+
 /// Sections to write: each tag with its bytes.
 pub(crate) type Sections = Vec<([u8; 4], Vec<u8>)>;
 
@@ -124,7 +130,7 @@ fn read_local<'a>(
         needed: table_end as u64,
     })?;
     let stored = u32::from_le_bytes(table[table_end - 4..].try_into().unwrap_or_default());
-    if crc32(&table[..table_end - 4]) != stored {
+    if !checksum_ok(&table[..table_end - 4], stored) {
         return Err(MrmError::Checksum {
             section: "section table".into(),
             offset: HEADER as u64,
@@ -176,7 +182,7 @@ fn read_local<'a>(
             });
         };
         let bytes = &file[offset as usize..end as usize];
-        if crc32(bytes) != crc {
+        if !checksum_ok(bytes, crc) {
             return Err(MrmError::Checksum {
                 section: name,
                 offset,
