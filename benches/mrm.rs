@@ -97,6 +97,15 @@ fn main() {
     // `cargo test --benches` runs benches once in debug: keep that short.
     let quick = args.iter().any(|a| a == "--test") || cfg!(debug_assertions);
     let repeats = if quick { 1 } else { 11 };
+    // `-- --profile-load`: only loads of the bunny, for a profiler.
+    if args.iter().any(|a| a == "--profile-load") {
+        let file = build_obj(&Path::new(TESTDATA).join("meshes/stanford-bunny.obj"));
+        let bytes = mrm::write(&file);
+        for _ in 0..500 {
+            black_box(mrm::read(&bytes).expect("loads"));
+        }
+        return;
+    }
     let out_dir = std::env::temp_dir().join(format!("aslod-mrm-bench-{}", std::process::id()));
     std::fs::create_dir_all(&out_dir).expect("temp dir");
     println!(

@@ -240,15 +240,16 @@ pub(super) fn read_mesh(
     let mut r = Reader::new(section(sections, b"ERRS")?);
     let errors = r.items::<2, _>(counts.steps, u16::from_le_bytes)?;
     r.finish()?;
+    let mut previous = 0.0f32;
     for (k, &e) in errors.iter().enumerate() {
         let e = error_from_u16(e);
-        let previous = k.checked_sub(1).map_or(0.0, |p| error_from_u16(errors[p]));
         if !(e.is_finite() && e >= previous) {
             return Err(r.invalid(
                 2 * k,
                 "the error table is not finite, positive and monotone",
             ));
         }
+        previous = e;
     }
     let view = if has_view != 0 {
         Some(read_view(
@@ -365,6 +366,16 @@ pub(super) struct Counts {
     pub(super) pairs: usize,
 }
 
+/// The first of `values` at or past `n`: a maximum first (which vectorises), the search only
+/// when there is one.
+fn first_out_of_range<V: Copy + Into<u32>>(values: &[V], n: usize) -> Option<usize> {
+    let max = values.iter().map(|&v| v.into()).max()?;
+    if (max as usize) < n {
+        return None;
+    }
+    values.iter().position(|&v| v.into() as usize >= n)
+}
+
 /// The records of one layout, checked so that every cache and refinement walk stays in
 /// bounds: indices and pairs name existing vertices; each step removes at most three of the
 /// live triangles, never below the base, and rewrites corners of the triangles that stay,
@@ -385,10 +396,7 @@ where
     let mut r = Reader::new(section(b"IDX ")?);
     let indices = r.items::<VB, _>(counts.indices, &vertex)?;
     r.finish()?;
-    if let Some(k) = indices
-        .iter()
-        .position(|&v| v.into() as usize >= counts.vertices)
-    {
+    if let Some(k) = first_out_of_range(&indices, counts.vertices) {
         return Err(r.invalid(VB * k, "an index names a vertex past the vertex table"));
     }
     let mut rs = Reader::new(section(b"STEP")?);
@@ -400,10 +408,7 @@ where
     let mut rp = Reader::new(section(b"PAIR")?);
     let raw = rp.items::<VB, _>(counts.pairs.saturating_mul(2), &vertex)?;
     rp.finish()?;
-    if let Some(k) = raw
-        .iter()
-        .position(|&v| v.into() as usize >= counts.vertices)
-    {
+    if let Some(k) = first_out_of_range(&raw, counts.vertices) {
         return Err(rp.invalid(VB * k, "a pair names a vertex past the vertex table"));
     }
     let pairs: Vec<[V; 2]> = raw.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
