@@ -11,10 +11,11 @@
 //!
 //! `cargo bench --no-default-features --bench mrm`
 
-use bevy_aslod::mesh::{IndexedMesh, load_gltf_primitives};
+use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, MrmFile};
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::regions::Partition;
+use bevy_aslod::skin::DEFAULT_RIGID_DELTA;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
@@ -57,26 +58,10 @@ fn build_obj(path: &Path) -> MrmFile {
 /// Builds every primitive of a glTF file (skinned ones by influence).
 fn build_gltf(path: &Path) -> MrmFile {
     let source = std::fs::read(path).expect("test character");
-    let (primitives, skins) = load_gltf_primitives(path).expect("test character");
-    let meshes = primitives
-        .into_iter()
-        .map(|p| {
-            let baked = match p.skin {
-                Some(s) => BakedMesh::build_skinned(
-                    &p.mesh,
-                    &skins[s].inverse_bind_matrices,
-                    skins[s].joint_names.clone(),
-                    bevy_aslod::skin::DEFAULT_RIGID_DELTA,
-                ),
-                None => BakedMesh::build(
-                    &p.mesh,
-                    &Partition::grid(&p.mesh, Default::default(), 1, 1).expect("partition"),
-                    &BuildOptions::default(),
-                ),
-            };
-            (p.key, baked.expect("builds"))
-        })
-        .collect();
+    let single = |m: &IndexedMesh| Partition::grid(m, Default::default(), 1, 1);
+    let options = BuildOptions::default();
+    let meshes =
+        mrm::bake_gltf(path, &single, &options, DEFAULT_RIGID_DELTA, &mut |_| {}).expect("builds");
     let name = path.file_name().unwrap().to_string_lossy();
     MrmFile {
         build: info(&name, &source),

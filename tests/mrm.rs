@@ -6,7 +6,7 @@
 
 mod common;
 
-use bevy_aslod::mesh::{IndexedMesh, load_gltf_primitives};
+use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, FORMAT_VERSION, MrmError, MrmFile, MrmKind};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
 use bevy_aslod::refine::VariableMesh;
@@ -513,25 +513,10 @@ fn assets_round_trip_field_for_field() {
         env!("CARGO_MANIFEST_DIR"),
         "/../shared/testdata/characters/RobotExpressive.glb"
     );
-    let (primitives, skins) =
-        load_gltf_primitives(std::path::Path::new(robot)).expect("RobotExpressive");
-    let mut meshes = Vec::new();
-    for p in primitives {
-        let baked = match p.skin {
-            Some(s) => BakedMesh::build_skinned(
-                &p.mesh,
-                &skins[s].inverse_bind_matrices,
-                skins[s].joint_names.clone(),
-                0.01,
-            ),
-            None => BakedMesh::build(
-                &p.mesh,
-                &Partition::clusters(&p.mesh, 4).unwrap(),
-                &BuildOptions::default(),
-            ),
-        };
-        meshes.push((p.key, baked.unwrap()));
-    }
+    let clusters = |m: &IndexedMesh| Partition::clusters(m, 4);
+    let options = BuildOptions::default();
+    let meshes = mrm::bake_gltf(robot.as_ref(), &clusters, &options, 0.01, &mut |_| {})
+        .expect("RobotExpressive");
     assert!(meshes.len() > 1 && meshes.iter().any(|(_, m)| m.skin.is_some()));
     files.push(MrmFile {
         build: build_info("RobotExpressive.glb", "skin", BuildOptions::default()),

@@ -353,18 +353,44 @@ fn extract_view(input: &Path, args: &ViewArgs, output: &Path) -> CliResult {
     Ok(())
 }
 
-/// Parses `grid:NxM` or `clusters:K`.
-fn partition(mesh: &IndexedMesh, spec: &str) -> Result<Partition, Box<dyn std::error::Error>> {
-    let bad = || format!("bad --regions {spec:?}: expected grid:NxM or clusters:K");
+/// How a mesh is cut into regions: `single`, `grid:NxM` (ground plane) or `clusters:K`.
+#[derive(Clone, Copy)]
+enum Cut {
+    Single,
+    Grid(usize, usize),
+    Clusters(usize),
+}
+
+impl Cut {
+    fn partition(self, mesh: &IndexedMesh) -> Result<Partition, bevy_aslod::regions::RegionError> {
+        match self {
+            Self::Single => Partition::grid(mesh, GridPlane::XZ, 1, 1),
+            Self::Grid(nx, ny) => Partition::grid(mesh, GridPlane::XZ, nx, ny),
+            Self::Clusters(k) => Partition::clusters(mesh, k),
+        }
+    }
+}
+
+/// Parses a [`Cut`].
+fn parse_cut(spec: &str) -> Result<Cut, Box<dyn std::error::Error>> {
+    let bad = || format!("bad --regions {spec:?}: expected single, grid:NxM or clusters:K");
+    if spec == "single" {
+        return Ok(Cut::Single);
+    }
     let (kind, arg) = spec.split_once(':').ok_or_else(bad)?;
     Ok(match kind {
         "grid" => {
             let (nx, ny) = arg.split_once('x').ok_or_else(bad)?;
-            Partition::grid(mesh, GridPlane::XZ, nx.parse()?, ny.parse()?)?
+            Cut::Grid(nx.parse()?, ny.parse()?)
         }
-        "clusters" => Partition::clusters(mesh, arg.parse()?)?,
+        "clusters" => Cut::Clusters(arg.parse()?),
         _ => return Err(bad().into()),
     })
+}
+
+/// Parses `grid:NxM` or `clusters:K` and cuts `mesh` so.
+fn partition(mesh: &IndexedMesh, spec: &str) -> Result<Partition, Box<dyn std::error::Error>> {
+    Ok(parse_cut(spec)?.partition(mesh)?)
 }
 
 /// Builds the regions, sets each to its count, writes the assembled mesh with one OBJ group
@@ -443,52 +469,39 @@ fn bake(args: &BakeArgs) -> CliResult {
         .input
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
-    // Each primitive with its skin's inverse binds and joint names, when skinned.
-    type Skin = (Vec<glam::Mat4>, Vec<String>);
-    let primitives: Vec<(String, IndexedMesh, Option<Skin>)> = if gltf {
-        let (primitives, skins) = bevy_aslod::mesh::load_gltf_primitives(&args.input)?;
-        primitives
-            .into_iter()
-            .map(|p| {
-                let skin = p.skin.map(|s| {
-                    let skin = &skins[s];
-                    (skin.inverse_bind_matrices.clone(), skin.joint_names.clone())
-                });
-                (p.key, p.mesh, skin)
-            })
-            .collect()
-    } else {
-        vec![("Mesh0/Primitive0".to_owned(), load(&args.input)?, None)]
-    };
+    let cut = parse_cut(&args.regions)?;
     let options = BuildOptions::default().with_view_dependent(args.view);
-    let bar = ProgressBar::new(primitives.len() as u64);
+    let bar = ProgressBar::new_spinner();
     if std::io::stderr().is_terminal() {
         bar.set_style(ProgressStyle::with_template(
-            "baking [{bar:40}] {pos}/{len} {msg}",
+            "baking {spinner} {pos} done, {msg}",
         )?);
+        bar.enable_steady_tick(std::time::Duration::from_millis(120));
     } else {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    let mut meshes = Vec::with_capacity(primitives.len());
-    let mut any_skin = false;
-    for (key, mesh, skin) in primitives {
-        bar.set_message(format!("{key} ({} triangles)", mesh.triangle_count()));
-        let baked = match skin {
-            Some((inverse_binds, names)) => {
-                any_skin = true;
-                let mut baked =
-                    BakedMesh::build_skinned(&mesh, &inverse_binds, names, args.rigid_delta)?;
-                if args.view {
-                    baked.variable = Some(ProgressiveMesh::build(&mesh, &options)?);
+    let meshes = if gltf {
+        let mut first = true;
+        mrm::bake_gltf(
+            &args.input,
+            &|mesh| cut.partition(mesh),
+            &options,
+            args.rigid_delta,
+            &mut |key| {
+                if !std::mem::take(&mut first) {
+                    bar.inc(1);
                 }
-                baked
-            }
-            None => BakedMesh::build(&mesh, &partition_spec(&mesh, &args.regions)?, &options)?,
-        };
-        meshes.push((key, baked));
-        bar.inc(1);
-    }
+                bar.set_message(key.to_owned());
+            },
+        )?
+    } else {
+        let mesh = load(&args.input)?;
+        bar.set_message(format!("{} triangles", mesh.triangle_count()));
+        let baked = BakedMesh::build(&mesh, &cut.partition(&mesh)?, &options)?;
+        vec![("Mesh0/Primitive0".to_owned(), baked)]
+    };
     bar.finish_and_clear();
+    let any_skin = meshes.iter().any(|(_, m)| m.skin.is_some());
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
     let file = MrmFile {
         build: BuildInfo {
@@ -525,15 +538,6 @@ fn bake(args: &BakeArgs) -> CliResult {
 
 fn max_triangles(m: &bevy_aslod::mrm::BakedMesh) -> usize {
     m.regions.regions().iter().map(|r| r.max_triangles()).sum()
-}
-
-/// [`partition`], with `single` for one region.
-fn partition_spec(mesh: &IndexedMesh, spec: &str) -> Result<Partition, Box<dyn std::error::Error>> {
-    if spec == "single" {
-        Ok(Partition::grid(mesh, GridPlane::XZ, 1, 1)?)
-    } else {
-        partition(mesh, spec)
-    }
 }
 
 /// `info` for a `.mrm` file: its sections, then what it holds (read and checked).

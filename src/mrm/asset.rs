@@ -709,3 +709,45 @@ impl BakedMesh {
         Ok(Self::from_regions(regions, Some(skin), None))
     }
 }
+
+/// Builds every triangle primitive of a glTF file ([`load_gltf_primitives`]), each under its
+/// Bevy label: skinned ones by influence ([`BakedMesh::build_skinned`], with the skin's joint
+/// names), the others cut by `partition` ([`BakedMesh::build`]). With
+/// [`BuildOptions::view_dependent`] every asset gets its refinement mesh. `progress` hears
+/// each primitive's key before it is built.
+///
+/// # Errors
+/// [`BakeError::Mesh`] when the file cannot be read, and the errors of the builds.
+///
+/// [`load_gltf_primitives`]: crate::mesh::load_gltf_primitives
+pub fn bake_gltf(
+    path: &std::path::Path,
+    partition: &dyn Fn(&crate::mesh::IndexedMesh) -> Result<Partition, crate::regions::RegionError>,
+    options: &BuildOptions,
+    rigid_delta: f32,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<(String, BakedMesh)>, BakeError> {
+    let (primitives, skins) = crate::mesh::load_gltf_primitives(path)?;
+    let mut out = Vec::with_capacity(primitives.len());
+    for p in primitives {
+        progress(&p.key);
+        let baked = match p.skin.and_then(|s| skins.get(s)) {
+            Some(skin) => {
+                let mut baked = BakedMesh::build_skinned(
+                    &p.mesh,
+                    &skin.inverse_bind_matrices,
+                    skin.joint_names.clone(),
+                    rigid_delta,
+                )?;
+                if options.view_dependent {
+                    baked.variable =
+                        Some(crate::multires::ProgressiveMesh::build(&p.mesh, options)?);
+                }
+                baked
+            }
+            None => BakedMesh::build(&p.mesh, &partition(&p.mesh)?, options)?,
+        };
+        out.push((p.key, baked));
+    }
+    Ok(out)
+}

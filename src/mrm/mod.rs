@@ -114,6 +114,8 @@
 
 mod asset;
 mod container;
+
+pub use asset::bake_gltf;
 mod progressive;
 
 use crate::budget::Obb;

@@ -5,11 +5,11 @@
 use super::skinned::app;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
-use bevy_aslod::mesh::load_gltf_primitives;
 use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, MrmFile};
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels};
 use bevy_aslod::regions::Partition;
+use bevy_aslod::skin::DEFAULT_RIGID_DELTA;
 use std::path::PathBuf;
 
 const ROBOT: &str = concat!(
@@ -26,33 +26,16 @@ fn asset_folder() -> PathBuf {
     if !link.exists() {
         std::os::unix::fs::symlink(ROBOT, &link).unwrap();
     }
-    let (primitives, skins) = load_gltf_primitives(std::path::Path::new(ROBOT)).unwrap();
-    let meshes = primitives
-        .into_iter()
-        .map(|p| {
-            let baked = match p.skin {
-                Some(s) => BakedMesh::build_skinned(
-                    &p.mesh,
-                    &skins[s].inverse_bind_matrices,
-                    skins[s].joint_names.clone(),
-                    bevy_aslod::skin::DEFAULT_RIGID_DELTA,
-                ),
-                None => BakedMesh::build(
-                    &p.mesh,
-                    &Partition::grid(&p.mesh, Default::default(), 1, 1).unwrap(),
-                    &BuildOptions::default(),
-                ),
-            };
-            (p.key, baked.unwrap())
-        })
-        .collect();
+    let single = |m: &_| Partition::grid(m, Default::default(), 1, 1);
+    let (options, delta) = (BuildOptions::default(), DEFAULT_RIGID_DELTA);
+    let meshes = mrm::bake_gltf(ROBOT.as_ref(), &single, &options, delta, &mut |_| {}).unwrap();
     let file = MrmFile {
         build: BuildInfo {
             source_name: "RobotExpressive.glb".into(),
             source_hash: mrm::source_hash(&std::fs::read(ROBOT).unwrap()),
             partition: "single".into(),
             writer: "tests/plugin/baked.rs".into(),
-            rigid_delta: Some(bevy_aslod::skin::DEFAULT_RIGID_DELTA),
+            rigid_delta: Some(DEFAULT_RIGID_DELTA),
             options: BuildOptions::default(),
         },
         meshes,

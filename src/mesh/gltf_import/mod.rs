@@ -69,6 +69,25 @@ pub fn load_gltf(path: &Path) -> MeshResult<GltfImport> {
 ///
 /// [`IndexedMesh::validate`]: super::IndexedMesh::validate
 pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> MeshResult<GltfImport> {
+    let (document, data, skins) = open(bytes, base_dir)?;
+    let instances = collect_instances(&document)?;
+    let mut builder = Builder::new(&skins, &instances);
+    for instance in &instances {
+        for primitive in instance.mesh.primitives() {
+            builder.add_primitive(&data, &primitive, instance)?;
+        }
+    }
+    let mut import = builder.finish(skins);
+    import.report = import.mesh.validate()?;
+    Ok(import)
+}
+
+/// The document, its buffers and its skins (read first: a file may be nothing but a broken
+/// skin).
+fn open<'a>(
+    bytes: &'a [u8],
+    base_dir: Option<&Path>,
+) -> MeshResult<(gltf::Document, Data<'a>, Vec<GltfSkinInfo>)> {
     let (json, bin) = if bytes.starts_with(b"glTF") {
         split_glb(bytes)?
     } else if bytes.is_empty() {
@@ -81,23 +100,11 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> MeshResult<Gltf
     let document = parse_document(&json[..end])?;
     let buffers = load_buffers(&document, bin, base_dir)?;
     let data = Data { buffers };
-
-    // Skins first: a file may be nothing but a broken skin.
     let skins = document
         .skins()
         .map(|skin| read_skin(&data, &skin))
         .collect::<MeshResult<Vec<_>>>()?;
-
-    let instances = collect_instances(&document)?;
-    let mut builder = Builder::new(&skins, &instances);
-    for instance in &instances {
-        for primitive in instance.mesh.primitives() {
-            builder.add_primitive(&data, &primitive, instance)?;
-        }
-    }
-    let mut import = builder.finish(skins);
-    import.report = import.mesh.validate()?;
-    Ok(import)
+    Ok((document, data, skins))
 }
 
 /// One triangle primitive of a glTF file, on its own, in its mesh's space: what Bevy's glTF
@@ -120,19 +127,7 @@ pub struct GltfPrimitive {
 /// As [`load_gltf`], naming the primitive for errors of its own.
 pub fn load_gltf_primitives(path: &Path) -> MeshResult<(Vec<GltfPrimitive>, Vec<GltfSkinInfo>)> {
     let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    let (json, bin) = if bytes.starts_with(b"glTF") {
-        split_glb(&bytes)?
-    } else {
-        (&bytes[..], None)
-    };
-    let end = json.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
-    let document = parse_document(&json[..end])?;
-    let buffers = load_buffers(&document, bin, path.parent())?;
-    let data = Data { buffers };
-    let skins = document
-        .skins()
-        .map(|skin| read_skin(&data, &skin))
-        .collect::<MeshResult<Vec<_>>>()?;
+    let (document, data, skins) = open(&bytes, path.parent())?;
     let instances = collect_instances(&document)?;
     let mut out = Vec::new();
     for mesh in document.meshes() {
