@@ -5,7 +5,7 @@
 use super::skinned::app;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
-use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, MrmFile};
+use bevy_aslod::mrm::{self, BuildInfo, MrmFile};
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels};
 use bevy_aslod::regions::Partition;
@@ -17,10 +17,10 @@ const ROBOT: &str = concat!(
     "/../shared/testdata/characters/RobotExpressive.glb"
 );
 
-/// A folder for the asset server with the robot (linked, not copied) and `robot.mrm` baked
-/// from it the way `aslod bake` does.
-fn asset_folder() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("aslod-baked-{}", std::process::id()));
+/// A folder of the test `name` for the asset server, with the robot (linked, not copied) and
+/// `robot.mrm` baked from it the way `aslod bake` does.
+fn asset_folder(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("aslod-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let link = dir.join("robot.glb");
     if !link.exists() {
@@ -72,7 +72,7 @@ fn convert(app: &mut App, scene: MultiresScene) -> Vec<Handle<MultiresMesh>> {
 
 #[test]
 fn a_baked_scene_loads_its_assets_instead_of_building() {
-    let dir = asset_folder();
+    let dir = asset_folder("baked");
     let mut app = app(20_000, dir.to_str().unwrap());
     let handles = convert(&mut app, MultiresScene::default().with_baked("robot.mrm"));
     for handle in &handles {
@@ -110,7 +110,7 @@ fn a_baked_scene_loads_its_assets_instead_of_building() {
 
 #[test]
 fn a_missing_baked_file_builds_instead() {
-    let dir = asset_folder();
+    let dir = asset_folder("missing");
     let mut app = app(20_000, dir.to_str().unwrap());
     let handles = convert(&mut app, MultiresScene::default().with_baked("missing.mrm"));
     assert!(
