@@ -289,6 +289,29 @@ impl Layout {
         }
     }
 
+    /// Every step's vertex pairs `(step, old, new)`: the attribute vertices the step moves
+    /// and where (one pair, or one per side of a seam).
+    pub(crate) fn step_pairs(&self) -> Vec<(usize, u32, u32)> {
+        fn walk<V: Copy + Into<u32>, H: Header, C: Corner>(
+            r: &Records<V, H, C>,
+        ) -> Vec<(usize, u32, u32)> {
+            let mut out = Vec::with_capacity(r.pairs.len());
+            let mut p = 0;
+            for (s, h) in r.steps.iter().enumerate() {
+                let (_, np, _) = h.unpack();
+                for pair in r.pairs.get(p..p + np).unwrap_or_default() {
+                    out.push((s, pair[0].into(), pair[1].into()));
+                }
+                p += np;
+            }
+            out
+        }
+        match self {
+            Self::Narrow(r) => walk(r),
+            Self::Wide(r) => walk(r),
+        }
+    }
+
     /// Triangles removed by each step, in order.
     pub(crate) fn removed(&self) -> Vec<usize> {
         (0..self.step_count()).map(|s| self.removed_by(s)).collect()

@@ -58,10 +58,12 @@ mod bands;
 mod borders;
 mod build;
 mod cache;
+mod morph;
 mod partition;
 mod util;
 
 pub use cache::RegionCaches;
+pub use morph::Geomorphs;
 pub use partition::{GridPlane, Partition};
 pub(crate) use util::subset;
 

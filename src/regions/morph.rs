@@ -1,0 +1,452 @@
+//! Geomorphs between region levels (Hoppe; Güdükbay et al.'s future work 5): a level change
+//! moves vertices over a time `T` instead of at once.
+
+use super::{RegionCaches, RegionMesh};
+use glam::Vec3;
+use std::collections::HashMap;
+
+/// Where a morphing position is heading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Toward {
+    /// Its own place (it appeared, or stays after all).
+    Own,
+    /// Wherever this position is shown: the representative it vanishes onto.
+    Position(u32),
+}
+
+/// One position in motion: from where it was shown when the morph started.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Morph {
+    from: Vec3,
+    start: f32,
+    toward: Toward,
+}
+
+/// The normal of one vertex in motion (seam copies have normals of their own): from the one
+/// it was shown with, toward its own (`None`) or a representative vertex's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct NormalMorph {
+    from: Vec3,
+    toward: Option<u32>,
+}
+
+/// A coarsening waiting for its vertices to arrive: the level, and when.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pending {
+    level: usize,
+    end: f32,
+}
+
+/// Geomorphs for one instance of a [`RegionMesh`] beside its [`RegionCaches`]: level changes
+/// go through [`set_triangle_count`](Self::set_triangle_count) and vertices are shown where
+/// [`position`](Self::position) says.
+///
+/// - **Refining** changes the triangles at once; every vertex that appears starts where its
+///   representative at the old level is shown and moves to its own position over
+///   [`duration`](Self::duration) seconds.
+/// - **Coarsening** keeps the old triangles: the vertices that vanish move onto their
+///   representatives at the new level first, and the region takes the new level when they
+///   arrive ([`update`](Self::update)). Until then it shows, and counts, its old triangles:
+///   [`triangle_count`](Self::triangle_count) is what a budget must charge it.
+/// - A region that changes again while morphing continues from where its vertices are.
+/// - Positions belong to source vertices, not to regions: a border vertex moves the same way
+///   in every region that draws it, so borders stay closed during a morph.
+///
+/// A duration of `0` is the plain caches: every change at once, every vertex at its own
+/// position.
+///
+/// ```
+/// use bevy_aslod::mesh::IndexedMesh;
+/// use bevy_aslod::multires::BuildOptions;
+/// use bevy_aslod::regions::{Geomorphs, GridPlane, Partition, RegionCaches, RegionMesh};
+/// use glam::Vec3;
+///
+/// let mut positions = Vec::new();
+/// for z in 0..9 {
+///     for x in 0..9 {
+///         positions.push(Vec3::new(x as f32, ((x * 7 + z * 3) % 5) as f32 * 0.2, z as f32));
+///     }
+/// }
+/// let mut indices = Vec::new();
+/// for z in 0..8u32 {
+///     for x in 0..8u32 {
+///         let i = z * 9 + x;
+///         indices.extend_from_slice(&[i, i + 9, i + 1, i + 1, i + 9, i + 10]);
+///     }
+/// }
+/// let mesh = IndexedMesh::new(positions, indices);
+/// let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2)?;
+/// let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default())?;
+/// let mut caches = RegionCaches::new(&regions);
+/// let mut morphs = Geomorphs::new(&regions, 0.25);
+/// // Coarsen region 0 at t = 0: it keeps its 32 triangles until t = 0.25.
+/// morphs.set_triangle_count(&regions, &mut caches, 0, 4, 0.0);
+/// assert_eq!(morphs.triangle_count(&caches, 0), 32);
+/// morphs.update(&regions, &mut caches, 0.25);
+/// assert!(morphs.triangle_count(&caches, 0) <= 4);
+/// # Ok::<(), bevy_aslod::regions::RegionError>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct Geomorphs {
+    duration: f32,
+    /// Per source vertex: its position (the first vertex there). Morphs move positions, so
+    /// every copy of a seam vertex moves alike, even one its region no longer draws.
+    position_of: Vec<u32>,
+    /// Per position: the source vertices there (ranges of `copies`).
+    copies_start: Vec<u32>,
+    copies: Vec<u32>,
+    /// Per region, per step: the positions that step removes.
+    removed_at: Vec<Vec<Vec<u32>>>,
+    /// Per position: the owner's step that removes it (`u32::MAX`: never) and the position
+    /// it goes onto.
+    parent: Vec<(u32, u32)>,
+    /// Per source vertex: the step that moves it and the vertex its corners go to, for
+    /// normals (`u32::MAX`: no recorded move).
+    vertex_parent: Vec<(u32, u32)>,
+    /// Per region: the triangle count of each level.
+    counts: Vec<Vec<usize>>,
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    morphs: HashMap<u32, Morph>,
+    normal_morphs: HashMap<u32, NormalMorph>,
+    pending: Vec<Option<Pending>>,
+}
+
+impl Geomorphs {
+    /// Morphs of `duration` seconds (negative or NaN count as `0`: off) for an instance of
+    /// `mesh`.
+    #[must_use]
+    pub fn new(mesh: &RegionMesh, duration: f32) -> Self {
+        let n = mesh.vertex_count();
+        let source = mesh.source_vertices();
+        let position_of = crate::mesh::weld_positions(&source.positions).remap;
+        let mut copies_start = vec![0u32; n + 1];
+        for &p in &position_of {
+            copies_start[p as usize + 1] += 1;
+        }
+        for i in 0..n {
+            copies_start[i + 1] += copies_start[i];
+        }
+        let mut fill = copies_start.clone();
+        let mut copies = vec![0u32; n];
+        for (g, &p) in position_of.iter().enumerate() {
+            copies[fill[p as usize] as usize] = g as u32;
+            fill[p as usize] += 1;
+        }
+        let mut parent = vec![(u32::MAX, u32::MAX); n];
+        let mut vertex_parent = vec![(u32::MAX, u32::MAX); n];
+        let mut removed_at = Vec::with_capacity(mesh.regions().len());
+        let mut counts = Vec::with_capacity(mesh.regions().len());
+        for region in mesh.regions() {
+            let pm = &region.mesh;
+            let mut at: Vec<Vec<u32>> = vec![Vec::new(); pm.records.step_count()];
+            for (step, old, new) in pm.records.step_pairs() {
+                let (g, to) = (region.global[old as usize], region.global[new as usize]);
+                vertex_parent[g as usize] = (step as u32, to);
+                let (p, q) = (position_of[g as usize], position_of[to as usize]);
+                if parent[p as usize].0 == u32::MAX {
+                    parent[p as usize] = (step as u32, q);
+                    at[step].push(p);
+                }
+            }
+            removed_at.push(at);
+            counts.push(pm.level_triangle_counts());
+        }
+        Self {
+            duration: if duration > 0.0 { duration } else { 0.0 },
+            position_of,
+            copies_start,
+            copies,
+            removed_at,
+            parent,
+            vertex_parent,
+            counts,
+            positions: source.positions,
+            normals: source.normals,
+            morphs: HashMap::new(),
+            normal_morphs: HashMap::new(),
+            pending: vec![None; mesh.regions().len()],
+        }
+    }
+
+    /// The morph time in seconds (`0`: off).
+    #[inline]
+    #[must_use]
+    pub fn duration(&self) -> f32 {
+        self.duration
+    }
+
+    /// Whether any vertex is moving or any coarsening waits.
+    #[must_use]
+    pub fn is_morphing(&self) -> bool {
+        !self.morphs.is_empty() || self.pending.iter().any(Option::is_some)
+    }
+
+    /// Triangles region `region` shows and counts now: its old count while a coarsening
+    /// morphs.
+    ///
+    /// # Panics
+    /// When `region` is out of range.
+    #[must_use]
+    pub fn triangle_count(&self, caches: &RegionCaches, region: usize) -> usize {
+        caches.triangle_count(region)
+    }
+
+    /// Asks region `region` for the finest level with at most `triangles` triangles at time
+    /// `now` (seconds, any clock that only goes forward). Returns the triangles it shows
+    /// now.
+    ///
+    /// # Panics
+    /// When `region` is out of range, or `mesh` is not the caches' mesh.
+    pub fn set_triangle_count(
+        &mut self,
+        mesh: &RegionMesh,
+        caches: &mut RegionCaches,
+        region: usize,
+        triangles: usize,
+        now: f32,
+    ) -> usize {
+        if self.duration == 0.0 {
+            return caches.set_triangle_count(mesh, region, triangles);
+        }
+        let shown = caches.level(region);
+        let counts = &self.counts[region];
+        let goal = counts
+            .iter()
+            .position(|&c| c <= triangles)
+            .unwrap_or(counts.len() - 1);
+        let goal_count = counts[goal];
+        let before = self.pending[region].map_or(shown, |p| p.level);
+        if goal == before {
+            return caches.triangle_count(region);
+        }
+        // Vertices heading for representatives at a level no longer wanted turn back.
+        for step in goal.max(shown)..before.max(shown) {
+            for i in 0..self.removed_at[region][step].len() {
+                self.retarget(self.removed_at[region][step][i], Toward::Own, 0, now);
+            }
+        }
+        if goal <= shown {
+            // Refine now: what appears starts on its representative at the shown level.
+            self.pending[region] = None;
+            for step in goal..shown {
+                for i in 0..self.removed_at[region][step].len() {
+                    let p = self.removed_at[region][step][i];
+                    let from = self.representative(p, shown);
+                    let normals: Vec<(u32, Vec3)> = self
+                        .copies_of(p)
+                        .iter()
+                        .map(|&g| {
+                            let rep = self.vertex_representative(g, shown);
+                            (g, self.normal(rep, now).unwrap_or(Vec3::ZERO))
+                        })
+                        .collect();
+                    let morph = Morph {
+                        from: self.shown_position(from, now, 0),
+                        start: now,
+                        toward: Toward::Own,
+                    };
+                    self.morphs.insert(p, morph);
+                    for (g, from) in normals {
+                        self.normal_morphs
+                            .insert(g, NormalMorph { from, toward: None });
+                    }
+                }
+            }
+            caches.set_triangle_count(mesh, region, goal_count)
+        } else {
+            // Coarsen later: what vanishes moves onto its representative at the goal first
+            // (a vertex already on its way there keeps going).
+            for step in shown..goal {
+                for i in 0..self.removed_at[region][step].len() {
+                    let p = self.removed_at[region][step][i];
+                    let to = Toward::Position(self.representative(p, goal));
+                    if self.morphs.get(&p).is_none_or(|m| m.toward != to) {
+                        self.retarget(p, to, goal, now);
+                    }
+                }
+            }
+            self.pending[region] = Some(Pending {
+                level: goal,
+                end: now + self.duration,
+            });
+            caches.triangle_count(region)
+        }
+    }
+
+    /// Ends what has arrived by `now`: coarsenings take their level, finished morphs go.
+    /// Call once a frame before drawing.
+    ///
+    /// # Panics
+    /// When `mesh` is not the caches' mesh.
+    pub fn update(&mut self, mesh: &RegionMesh, caches: &mut RegionCaches, now: f32) {
+        for region in 0..self.pending.len() {
+            let Some(p) = self.pending[region] else {
+                continue;
+            };
+            if now < p.end {
+                continue;
+            }
+            self.pending[region] = None;
+            let shown = caches.level(region);
+            caches.set_triangle_count(mesh, region, self.counts[region][p.level]);
+            for step in shown..p.level {
+                for &q in &self.removed_at[region][step] {
+                    self.morphs.remove(&q);
+                    let (a, b) = (
+                        self.copies_start[q as usize],
+                        self.copies_start[q as usize + 1],
+                    );
+                    for &g in &self.copies[a as usize..b as usize] {
+                        self.normal_morphs.remove(&g);
+                    }
+                }
+            }
+        }
+        let duration = self.duration;
+        let position_of = &self.position_of;
+        self.morphs
+            .retain(|_, m| m.toward != Toward::Own || now < m.start + duration);
+        let morphs = &self.morphs;
+        self.normal_morphs
+            .retain(|g, _| morphs.contains_key(&position_of[*g as usize]));
+    }
+
+    /// Where source vertex `g` is shown at `now`.
+    ///
+    /// # Panics
+    /// When `g` is not a vertex of the mesh.
+    #[must_use]
+    pub fn position(&self, g: u32, now: f32) -> Vec3 {
+        self.shown_position(self.position_of[g as usize], now, 0)
+    }
+
+    /// The normal source vertex `g` is shown with at `now` (interpolated and normalised),
+    /// when the mesh has normals.
+    ///
+    /// # Panics
+    /// When `g` is not a vertex of the mesh.
+    #[must_use]
+    pub fn normal(&self, g: u32, now: f32) -> Option<Vec3> {
+        self.shown_normal(g, now, 0)
+    }
+
+    fn shown_normal(&self, g: u32, now: f32, depth: usize) -> Option<Vec3> {
+        let normals = self.normals.as_ref()?;
+        let own = normals[g as usize];
+        let p = self.position_of[g as usize];
+        let (Some(m), Some(nm)) = (self.morphs.get(&p), self.normal_morphs.get(&g)) else {
+            return Some(own);
+        };
+        if depth >= 64 {
+            return Some(own);
+        }
+        let target = match nm.toward {
+            Some(to) => self.shown_normal(to, now, depth + 1).unwrap_or(own),
+            None => own,
+        };
+        let t = self.progress(m, now);
+        if t >= 1.0 {
+            return Some(target);
+        }
+        Some(nm.from.lerp(target, t).normalize_or(target))
+    }
+
+    /// How far morph `m` has come at `now`, `0.0..=1.0`.
+    fn progress(&self, m: &Morph, now: f32) -> f32 {
+        ((now - m.start) / self.duration).clamp(0.0, 1.0)
+    }
+
+    /// Writes where each of region `region`'s local vertices is shown at `now` into `out`
+    /// (resized to its local vertex table).
+    ///
+    /// # Panics
+    /// When `region` is out of range or `mesh` is not this instance's mesh.
+    pub fn write_positions(&self, mesh: &RegionMesh, region: usize, now: f32, out: &mut Vec<Vec3>) {
+        out.clear();
+        out.extend(
+            mesh.regions()[region]
+                .global
+                .iter()
+                .map(|&g| self.position(g, now)),
+        );
+    }
+
+    /// Where position `p` is shown at `now`, following a vanishing position's
+    /// representative while it moves.
+    fn shown_position(&self, p: u32, now: f32, depth: usize) -> Vec3 {
+        let own = self.positions[p as usize];
+        let Some(m) = self.morphs.get(&p).filter(|_| depth < 64) else {
+            return own;
+        };
+        let target = match m.toward {
+            Toward::Own => own,
+            Toward::Position(q) => self.shown_position(q, now, depth + 1),
+        };
+        let t = self.progress(m, now);
+        if t >= 1.0 {
+            return target;
+        }
+        m.from.lerp(target, t)
+    }
+
+    /// The source vertices at position `p`.
+    fn copies_of(&self, p: u32) -> &[u32] {
+        let (a, b) = (
+            self.copies_start[p as usize],
+            self.copies_start[p as usize + 1],
+        );
+        &self.copies[a as usize..b as usize]
+    }
+
+    /// Starts position `p` toward `toward` from where it is shown now (nothing when it is
+    /// at rest at its own place and stays there); its copies' normals toward their
+    /// representatives at `level` (vanishing) or their own.
+    fn retarget(&mut self, p: u32, toward: Toward, level: usize, now: f32) {
+        if toward == Toward::Own && !self.morphs.contains_key(&p) {
+            return;
+        }
+        let normals: Vec<(u32, NormalMorph)> = self
+            .copies_of(p)
+            .iter()
+            .map(|&g| {
+                let to = match toward {
+                    Toward::Own => None,
+                    Toward::Position(_) => Some(self.vertex_representative(g, level)),
+                };
+                let from = self.normal(g, now).unwrap_or(Vec3::ZERO);
+                (g, NormalMorph { from, toward: to })
+            })
+            .collect();
+        let morph = Morph {
+            from: self.shown_position(p, now, 0),
+            start: now,
+            toward,
+        };
+        self.morphs.insert(p, morph);
+        self.normal_morphs.extend(normals);
+    }
+
+    /// The position that stands for position `p` at `level` of its region.
+    fn representative(&self, mut p: u32, level: usize) -> u32 {
+        while let Some(&(step, to)) = self.parent.get(p as usize) {
+            if step == u32::MAX || (step as usize) >= level {
+                break;
+            }
+            p = to;
+        }
+        p
+    }
+
+    /// The vertex whose attributes stand for vertex `g` at `level` (as far as its recorded
+    /// moves go: a copy no triangle uses any more moves no further).
+    fn vertex_representative(&self, mut g: u32, level: usize) -> u32 {
+        while let Some(&(step, to)) = self.vertex_parent.get(g as usize) {
+            if step == u32::MAX || (step as usize) >= level {
+                break;
+            }
+            g = to;
+        }
+        g
+    }
+}

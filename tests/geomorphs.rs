@@ -1,0 +1,227 @@
+//! Geomorphs between region levels: random level changes on closed meshes in regions,
+//! sampled at random morph times, never open an edge or jump; at the end of a morph every
+//! vertex is at its own position and the levels are the ones asked for; a duration of 0 is
+//! the plain caches.
+
+mod common;
+
+use bevy_aslod::mesh::{IndexedMesh, weld_positions};
+use bevy_aslod::multires::BuildOptions;
+use bevy_aslod::regions::{Geomorphs, Partition, RegionCaches, RegionMesh};
+use common::{assert_closed, sphere, testdata_mesh};
+use glam::Vec3;
+use std::collections::HashSet;
+
+const T: f32 = 0.25;
+
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+fn regions(mesh: &IndexedMesh, k: usize) -> RegionMesh {
+    let partition = Partition::clusters(mesh, k).unwrap();
+    RegionMesh::build(mesh, &partition, &BuildOptions::default()).unwrap()
+}
+
+/// Every region's triangles, in source vertices.
+fn assemble(mesh: &RegionMesh, caches: &mut RegionCaches) -> Vec<u32> {
+    let (mut all, mut part) = (Vec::new(), Vec::new());
+    for r in 0..mesh.regions().len() {
+        caches.write_global_indices(mesh, r, &mut part);
+        all.extend_from_slice(&part);
+    }
+    all
+}
+
+/// The shown mesh is closed, and vertices at one source position (seams, and the copies a
+/// border shares) are shown at one position: no crack opens.
+fn assert_crack_free(mesh: &IndexedMesh, morphs: &Geomorphs, indices: &[u32], now: f32, at: &str) {
+    assert_closed(&mesh.positions, indices, at);
+    let weld = weld_positions(&mesh.positions);
+    let used: HashSet<u32> = indices.iter().copied().collect();
+    for &g in &used {
+        let first = weld.remap[g as usize];
+        if first != g && used.contains(&first) {
+            assert_eq!(
+                morphs.position(g, now),
+                morphs.position(first, now),
+                "{at}: vertex {g} and {first} share a position but are shown apart"
+            );
+        }
+    }
+}
+
+fn shown(morphs: &Geomorphs, indices: &[u32], now: f32) -> Vec<(u32, Vec3)> {
+    let used: HashSet<u32> = indices.iter().copied().collect();
+    used.into_iter()
+        .map(|g| (g, morphs.position(g, now)))
+        .collect()
+}
+
+#[test]
+fn random_level_changes_stay_crack_free_and_never_jump() {
+    for (name, mesh, k) in [
+        ("sphere", sphere(16, 24, &[0.0, 0.04, -0.02, 0.01], true), 6),
+        ("cow", testdata_mesh("cow.obj"), 8),
+    ] {
+        let rm = regions(&mesh, k);
+        let mut caches = RegionCaches::new(&rm);
+        let mut morphs = Geomorphs::new(&rm, T);
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+        let mut now = 0.0f32;
+        for request in 0..60 {
+            // Requests come at random: often within a morph, sometimes after it.
+            now += rng.unit() * 0.4;
+            morphs.update(&rm, &mut caches, now);
+            let before_indices = assemble(&rm, &mut caches);
+            let before = shown(&morphs, &before_indices, now);
+            let regions_changed = 1 + (rng.next() % rm.regions().len() as u64) as usize;
+            for _ in 0..regions_changed {
+                let r = (rng.next() % rm.regions().len() as u64) as usize;
+                let max = rm.regions()[r].max_triangles();
+                let count = (rng.unit() * max as f32) as usize;
+                morphs.set_triangle_count(&rm, &mut caches, r, count, now);
+            }
+            // No jump: what was shown stays where it was; what appears is where a shown
+            // vertex is.
+            let after_indices = assemble(&rm, &mut caches);
+            let after = shown(&morphs, &after_indices, now);
+            let was: std::collections::HashMap<u32, Vec3> = before.iter().copied().collect();
+            let positions: Vec<Vec3> = before.iter().map(|&(_, p)| p).collect();
+            for (g, p) in after {
+                match was.get(&g) {
+                    Some(&q) => assert_eq!(p, q, "{name}, request {request}: vertex {g} jumped"),
+                    None => assert!(
+                        positions.contains(&p),
+                        "{name}, request {request}: vertex {g} appeared off the mesh"
+                    ),
+                }
+            }
+            // Sampled at random times within the morph.
+            for _ in 0..3 {
+                let at = now + rng.unit() * T;
+                let mut c = caches.clone();
+                let mut m = morphs.clone();
+                m.update(&rm, &mut c, at);
+                let indices = assemble(&rm, &mut c);
+                assert_crack_free(
+                    &mesh,
+                    &m,
+                    &indices,
+                    at,
+                    &format!("{name}, request {request}"),
+                );
+            }
+        }
+        // At the end, every vertex shown is at its own position, and the levels are the last
+        // ones asked for.
+        now += T;
+        morphs.update(&rm, &mut caches, now);
+        assert!(!morphs.is_morphing(), "{name}: still morphing");
+        let indices = assemble(&rm, &mut caches);
+        for &g in &indices {
+            assert_eq!(
+                morphs.position(g, now),
+                mesh.positions[g as usize],
+                "{name}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_end_of_a_morph_is_the_target_level_exactly() {
+    let mesh = testdata_mesh("cow.obj");
+    let rm = regions(&mesh, 8);
+    let mut rng = Rng(7);
+    let mut caches = RegionCaches::new(&rm);
+    let mut plain = RegionCaches::new(&rm);
+    let mut morphs = Geomorphs::new(&rm, T);
+    let mut now = 0.0;
+    for _ in 0..20 {
+        for r in 0..rm.regions().len() {
+            let count = (rng.unit() * rm.regions()[r].max_triangles() as f32) as usize;
+            morphs.set_triangle_count(&rm, &mut caches, r, count, now);
+            plain.set_triangle_count(&rm, r, count);
+        }
+        now += T;
+        morphs.update(&rm, &mut caches, now);
+        assert_eq!(assemble(&rm, &mut caches), assemble(&rm, &mut plain));
+        let mut out = Vec::new();
+        for r in 0..rm.regions().len() {
+            morphs.write_positions(&rm, r, now, &mut out);
+            let own: Vec<Vec3> = rm.regions()[r]
+                .global_vertices()
+                .iter()
+                .map(|&g| mesh.positions[g as usize])
+                .collect();
+            assert_eq!(out, own);
+        }
+    }
+}
+
+#[test]
+fn a_coarsening_region_counts_its_old_triangles_until_they_go() {
+    let mesh = testdata_mesh("cow.obj");
+    let rm = regions(&mesh, 4);
+    let mut caches = RegionCaches::new(&rm);
+    let mut morphs = Geomorphs::new(&rm, T);
+    let full = caches.triangle_count(0);
+    assert_eq!(
+        morphs.set_triangle_count(&rm, &mut caches, 0, 10, 0.0),
+        full
+    );
+    morphs.update(&rm, &mut caches, 0.2);
+    assert_eq!(morphs.triangle_count(&caches, 0), full, "still morphing");
+    morphs.update(&rm, &mut caches, T);
+    assert!(morphs.triangle_count(&caches, 0) < full);
+    // Refining is at once.
+    assert_eq!(
+        morphs.set_triangle_count(&rm, &mut caches, 0, usize::MAX, 1.0),
+        full
+    );
+}
+
+#[test]
+fn a_duration_of_zero_is_the_plain_caches() {
+    let mesh = sphere(12, 16, &[0.0, 0.03], true);
+    let rm = regions(&mesh, 5);
+    let mut rng = Rng(3);
+    let mut caches = RegionCaches::new(&rm);
+    let mut plain = RegionCaches::new(&rm);
+    for off in [
+        Geomorphs::new(&rm, 0.0),
+        Geomorphs::new(&rm, -1.0),
+        Geomorphs::new(&rm, f32::NAN),
+    ] {
+        let mut off = off;
+        assert_eq!(off.duration(), 0.0);
+        for step in 0..50 {
+            let r = (rng.next() % rm.regions().len() as u64) as usize;
+            let count = (rng.unit() * rm.regions()[r].max_triangles() as f32) as usize;
+            let now = step as f32 * 0.01;
+            assert_eq!(
+                off.set_triangle_count(&rm, &mut caches, r, count, now),
+                plain.set_triangle_count(&rm, r, count)
+            );
+            off.update(&rm, &mut caches, now);
+            assert!(!off.is_morphing());
+            let indices = assemble(&rm, &mut caches);
+            assert_eq!(indices, assemble(&rm, &mut plain));
+            for &g in &indices {
+                assert_eq!(off.position(g, now), mesh.positions[g as usize]);
+            }
+        }
+    }
+}
