@@ -79,9 +79,11 @@ struct Pending {
 /// let regions = RegionMesh::build(&mesh, &partition, &BuildOptions::default())?;
 /// let mut caches = RegionCaches::new(&regions);
 /// let mut morphs = Geomorphs::new(&regions, 0.25);
-/// // Coarsen region 0 at t = 0: it keeps its 32 triangles until t = 0.25.
+/// // Coarsen region 0 at t = 0: it keeps its triangles until t = 0.25.
+/// let full = caches.triangle_count(0);
 /// morphs.set_triangle_count(&regions, &mut caches, 0, 4, 0.0);
-/// assert_eq!(morphs.triangle_count(&caches, 0), 32);
+/// assert!(morphs.is_coarsening(0));
+/// assert_eq!(morphs.triangle_count(&caches, 0), full);
 /// morphs.update(&regions, &mut caches, 0.25);
 /// assert!(morphs.triangle_count(&caches, 0) <= 4);
 /// # Ok::<(), bevy_aslod::regions::RegionError>(())
@@ -142,8 +144,13 @@ impl Geomorphs {
             let mut at: Vec<Vec<u32>> = vec![Vec::new(); pm.records.step_count()];
             for (step, old, new) in pm.records.step_pairs() {
                 let (g, to) = (region.global[old as usize], region.global[new as usize]);
-                vertex_parent[g as usize] = (step as u32, to);
                 let (p, q) = (position_of[g as usize], position_of[to as usize]);
+                // Identity pairs (a corner that keeps its vertex: an ear's far corner) move
+                // nothing.
+                if p == q {
+                    continue;
+                }
+                vertex_parent[g as usize] = (step as u32, to);
                 if parent[p as usize].0 == u32::MAX {
                     parent[p as usize] = (step as u32, q);
                     at[step].push(p);
@@ -352,6 +359,28 @@ impl Geomorphs {
         Some(nm.from.lerp(target, t).normalize_or(target))
     }
 
+    /// Whether region `region` is coarsening: it shows its old triangles until its vertices
+    /// arrive. A budget counts them as fixed and leaves the region alone until then (asking
+    /// it for its old count again would turn the morph back).
+    ///
+    /// # Panics
+    /// When `region` is out of range.
+    #[inline]
+    #[must_use]
+    pub fn is_coarsening(&self, region: usize) -> bool {
+        self.pending[region].is_some()
+    }
+
+    /// The source vertex whose position stands for vertex `g` at `level` of its region: `g`
+    /// itself while present, else the one it was collapsed onto, and so on.
+    ///
+    /// # Panics
+    /// When `g` is not a vertex of the mesh.
+    #[must_use]
+    pub fn stand_in(&self, g: u32, level: usize) -> u32 {
+        self.representative(self.position_of[g as usize], level)
+    }
+
     /// How far morph `m` has come at `now`, `0.0..=1.0`.
     fn progress(&self, m: &Morph, now: f32) -> f32 {
         ((now - m.start) / self.duration).clamp(0.0, 1.0)
@@ -429,11 +458,13 @@ impl Geomorphs {
 
     /// The position that stands for position `p` at `level` of its region.
     fn representative(&self, mut p: u32, level: usize) -> u32 {
-        while let Some(&(step, to)) = self.parent.get(p as usize) {
-            if step == u32::MAX || (step as usize) >= level {
-                break;
+        // Each move is to a later step's position, so the chain ends; the bound guards a
+        // damaged file's regions.
+        for _ in 0..self.parent.len() {
+            match self.parent.get(p as usize) {
+                Some(&(step, to)) if step != u32::MAX && (step as usize) < level => p = to,
+                _ => break,
             }
-            p = to;
         }
         p
     }
@@ -441,11 +472,11 @@ impl Geomorphs {
     /// The vertex whose attributes stand for vertex `g` at `level` (as far as its recorded
     /// moves go: a copy no triangle uses any more moves no further).
     fn vertex_representative(&self, mut g: u32, level: usize) -> u32 {
-        while let Some(&(step, to)) = self.vertex_parent.get(g as usize) {
-            if step == u32::MAX || (step as usize) >= level {
-                break;
+        for _ in 0..self.vertex_parent.len() {
+            match self.vertex_parent.get(g as usize) {
+                Some(&(step, to)) if step != u32::MAX && (step as usize) < level => g = to,
+                _ => break,
             }
-            g = to;
         }
         g
     }

@@ -1,0 +1,259 @@
+//! Popping with and without geomorphs (`regions::Geomorphs`), printed as a table (release):
+//! the bunny (16 clusters), the Silvretta terrain (6×6 grid) and the mannequin at rest (16
+//! clusters), each along a camera path at 60 fps (1280×720, 60° vertical field of view)
+//! that orbits far for two seconds, cuts to near, and orbits there for two more. Every
+//! frame the budget is split by the α allocation over the regions' projected boxes; a
+//! coarsening region is fixed cost at its old count until its morph ends.
+//!
+//! Per frame it measures the largest screen-space movement of any vertex, with the frame's
+//! camera (so only the geometry's change counts): a vertex shown in both frames by its own
+//! two positions, one that appears from where its stand-in at the old level was shown, one
+//! that vanishes to where its stand-in at the new level is shown. Also the shown triangles
+//! against the budget, the CPU time of the morph bookkeeping (level requests, `update`, and
+//! the positions of every morphing region's vertices), and the bytes a CPU write of those
+//! positions would upload.
+//!
+//! `cargo bench --no-default-features --bench geomorph`
+
+use bevy_aslod::budget::{AllocationParams, Allocator, Obb, ProjectedAreaCamera, RegionInput};
+use bevy_aslod::mesh::{IndexedMesh, load_gltf};
+use bevy_aslod::multires::BuildOptions;
+use bevy_aslod::regions::{Geomorphs, GridPlane, Partition, Region, RegionCaches, RegionMesh};
+use glam::{Mat4, Vec2, Vec3};
+use std::collections::HashMap;
+use std::time::Instant;
+
+const WIDTH: f32 = 1280.0;
+const HEIGHT: f32 = 720.0;
+const FOV_Y: f32 = std::f32::consts::FRAC_PI_3;
+const DT: f32 = 1.0 / 60.0;
+
+#[path = "../examples/common/terrain.rs"]
+mod terrain;
+
+struct Scene {
+    name: &'static str,
+    mesh: IndexedMesh,
+    partition: Partition,
+    /// Share of the full mesh's triangles the budget allows.
+    budget: f32,
+}
+
+fn scenes(quick: bool) -> Vec<Scene> {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/");
+    let (bunny, _) = IndexedMesh::load(format!(
+        "{root}../shared/testdata/meshes/stanford-bunny.obj"
+    ))
+    .expect("the bunny");
+    let terrain = terrain::terrain_middle(if quick { 65 } else { 129 });
+    let mannequin = load_gltf(std::path::Path::new(&format!("{root}assets/mannequin.glb")))
+        .expect("the mannequin")
+        .mesh;
+    vec![
+        Scene {
+            name: "bunny",
+            partition: Partition::clusters(&bunny, 16).expect("clusters"),
+            mesh: bunny,
+            budget: 0.1,
+        },
+        Scene {
+            name: "Silvretta",
+            partition: Partition::grid(&terrain, GridPlane::XZ, 6, 6).expect("grid"),
+            mesh: terrain,
+            budget: 0.2,
+        },
+        Scene {
+            name: "mannequin",
+            partition: Partition::clusters(&mannequin, 16).expect("clusters"),
+            mesh: mannequin,
+            budget: 0.1,
+        },
+    ]
+}
+
+/// The camera at frame `f` of `frames`: far orbit, then a cut to a near one.
+fn camera(f: usize, frames: usize, centre: Vec3, radius: f32) -> (Mat4, ProjectedAreaCamera) {
+    let near_half = f >= frames / 2;
+    let distance = if near_half { 1.3 } else { 6.0 } * radius;
+    let angle = f as f32 * 0.01;
+    let eye = centre + distance * Vec3::new(angle.sin(), 0.35, angle.cos()).normalize();
+    let view = Mat4::look_at_rh(eye, centre, Vec3::Y);
+    let projection = Mat4::perspective_infinite_reverse_rh(FOV_Y, WIDTH / HEIGHT, 0.01 * radius);
+    let area = ProjectedAreaCamera::new(view, projection, Vec2::new(WIDTH, HEIGHT))
+        .expect("a valid camera");
+    (projection * view, area)
+}
+
+fn to_screen(clip: &Mat4, p: Vec3) -> Option<Vec2> {
+    let c = *clip * p.extend(1.0);
+    (c.w > 1e-6).then(|| {
+        let ndc = c.truncate() / c.w;
+        Vec2::new((ndc.x + 1.0) * 0.5 * WIDTH, (1.0 - ndc.y) * 0.5 * HEIGHT)
+    })
+}
+
+/// What one run along the path measured.
+struct Run {
+    /// Per frame: the largest movement in pixels.
+    movement: Vec<f32>,
+    /// The largest shown total over the budget.
+    over_budget: f32,
+    /// Per frame: morph bookkeeping in ms, bytes a CPU write of positions would upload.
+    cpu_ms: Vec<f64>,
+    bytes: Vec<usize>,
+}
+
+fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames: usize) -> Run {
+    let (lo, hi) = scene.mesh.bounds().expect("non-empty");
+    let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
+    let budget = (scene.budget * scene.mesh.triangle_count() as f32) as u32;
+    let mut caches = RegionCaches::new(regions);
+    let mut morphs = Geomorphs::new(regions, duration);
+    let mut allocator = Allocator::new();
+    let (mut areas, mut inputs, mut counts) = (vec![0.0; obbs.len()], Vec::new(), Vec::new());
+    let region_of = regions.partition().region_of();
+    let mut shown: HashMap<u32, Vec3> = HashMap::new();
+    let mut levels: Vec<usize> = (0..regions.regions().len())
+        .map(|r| caches.level(r))
+        .collect();
+    let mut out = Run {
+        movement: Vec::new(),
+        over_budget: 0.0,
+        cpu_ms: Vec::new(),
+        bytes: Vec::new(),
+    };
+    let mut part = Vec::new();
+    let mut positions = Vec::new();
+    for f in 0..frames {
+        let now = f as f32 * DT;
+        let (clip, area_camera) = camera(f, frames, centre, radius);
+        area_camera.projected_areas(obbs, &mut areas);
+        // Coarsening regions are fixed cost at their shown count; the others share the rest.
+        let fixed: u32 = (0..regions.regions().len())
+            .filter(|&r| morphs.is_coarsening(r))
+            .map(|r| caches.triangle_count(r) as u32)
+            .sum();
+        inputs.clear();
+        for (r, (region, &area)) in regions.regions().iter().zip(&areas).enumerate() {
+            let weight = if morphs.is_coarsening(r) { 0.0 } else { area };
+            let (min, max) = if morphs.is_coarsening(r) {
+                (0, 0)
+            } else {
+                (region.min_triangles() as u32, region.max_triangles() as u32)
+            };
+            inputs.push(RegionInput::from_area(
+                weight,
+                1.0,
+                min,
+                max,
+                caches.triangle_count(r) as u32,
+            ));
+        }
+        let params = AllocationParams::with_budget(budget.saturating_sub(fixed).max(1));
+        allocator
+            .allocate(&params, &inputs, &mut counts)
+            .expect("valid inputs");
+        let start = Instant::now();
+        for (r, &c) in counts.iter().enumerate() {
+            if !morphs.is_coarsening(r) {
+                morphs.set_triangle_count(regions, &mut caches, r, c as usize, now);
+            }
+        }
+        morphs.update(regions, &mut caches, now);
+        let mut bytes = 0;
+        if morphs.is_morphing() {
+            for r in 0..regions.regions().len() {
+                morphs.write_positions(regions, r, now, &mut positions);
+                bytes += 24 * positions.len();
+            }
+        }
+        out.cpu_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        out.bytes.push(bytes);
+        let total: usize = (0..regions.regions().len())
+            .map(|r| caches.triangle_count(r))
+            .sum();
+        out.over_budget = out.over_budget.max(total as f32 / budget as f32);
+        // This frame's shown vertices.
+        let mut now_shown: HashMap<u32, Vec3> = HashMap::new();
+        for r in 0..regions.regions().len() {
+            caches.write_global_indices(regions, r, &mut part);
+            for &g in &part {
+                now_shown
+                    .entry(g)
+                    .or_insert_with(|| morphs.position(g, now));
+            }
+        }
+        let new_levels: Vec<usize> = (0..regions.regions().len())
+            .map(|r| caches.level(r))
+            .collect();
+        let mut largest = 0.0f32;
+        if f > 0 && f != frames / 2 {
+            let moved = |a: Vec3, b: Vec3| match (to_screen(&clip, a), to_screen(&clip, b)) {
+                (Some(a), Some(b)) => a.distance(b),
+                _ => 0.0,
+            };
+            for (&g, &p) in &now_shown {
+                let before = match shown.get(&g) {
+                    Some(&q) => q,
+                    None => {
+                        let level = levels[region_of[g as usize] as usize];
+                        let stand_in = morphs.stand_in(g, level);
+                        shown.get(&stand_in).copied().unwrap_or(p)
+                    }
+                };
+                largest = largest.max(moved(before, p));
+            }
+            for (&g, &q) in &shown {
+                if !now_shown.contains_key(&g) {
+                    let level = new_levels[region_of[g as usize] as usize];
+                    let stand_in = morphs.stand_in(g, level);
+                    let p = now_shown.get(&stand_in).copied().unwrap_or(q);
+                    largest = largest.max(moved(q, p));
+                }
+            }
+        }
+        out.movement.push(largest);
+        shown = now_shown;
+        levels = new_levels;
+    }
+    out
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let quick = args.iter().any(|a| a == "--test") || cfg!(debug_assertions);
+    let frames = if quick { 24 } else { 240 };
+    println!(
+        "| scene | T | largest movement, px (any frame) | frames over 1 px | 99th percentile px | shown / budget (max) | morph CPU per frame (median, max) | bytes a CPU write would upload per frame (median, max) |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    for scene in scenes(quick) {
+        let regions = RegionMesh::build(&scene.mesh, &scene.partition, &BuildOptions::default())
+            .expect("builds");
+        let obbs: Vec<Obb> = regions.regions().iter().map(Region::obb).collect();
+        for duration in [0.0, 0.25] {
+            let r = run(&scene, &regions, &obbs, duration, frames);
+            let mut sorted = r.movement.clone();
+            sorted.sort_by(f32::total_cmp);
+            let p99 = sorted[(sorted.len() * 99 / 100).min(sorted.len() - 1)];
+            let over = r.movement.iter().filter(|&&m| m > 1.0).count();
+            let bytes: Vec<f64> = r.bytes.iter().map(|&b| b as f64).collect();
+            println!(
+                "| {} | {duration} s | {:.1} | {over} of {} | {p99:.2} | {:.3} | {:.3} ms, {:.3} ms | {:.0} B, {:.0} B |",
+                scene.name,
+                sorted.last().copied().unwrap_or(0.0),
+                r.movement.len(),
+                r.over_budget,
+                median(r.cpu_ms.clone()),
+                r.cpu_ms.iter().copied().fold(0.0, f64::max),
+                median(bytes.clone()),
+                bytes.iter().copied().fold(0.0, f64::max),
+            );
+        }
+    }
+}
