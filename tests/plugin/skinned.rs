@@ -99,7 +99,13 @@ fn spawn_character(
             .query_filtered::<Entity, With<AnimationPlayer>>()
             .iter(app.world())
             .next();
-        if let (Some(clip), true, Some(player)) = (clip.clone(), converted, player) {
+        // Everything the glTF needs loaded too: a dependency that lands later may make the
+        // scene spawn again, with new entities.
+        let settled = app
+            .world()
+            .resource::<AssetServer>()
+            .is_loaded_with_dependencies(&gltf);
+        if let (Some(clip), true, Some(player), true) = (clip.clone(), converted, player, settled) {
             let length = app
                 .world()
                 .resource::<Assets<AnimationClip>>()
