@@ -3,15 +3,16 @@
 //! clusters), each along a camera path at 60 fps (1280×720, 60° vertical field of view)
 //! that orbits far for two seconds, cuts to near, and orbits there for two more. Every
 //! frame the budget is split by the α allocation over the regions' projected boxes; a
-//! coarsening region is fixed cost at its old count until its morph ends.
+//! coarsening region is fixed cost at its old count until its morph ends, and refinements
+//! take only what is free (`Geomorphs::apply_allocation`).
 //!
 //! Per frame it measures the largest screen-space movement of any vertex, with the frame's
 //! camera (so only the geometry's change counts): a vertex shown in both frames by its own
 //! two positions, one that appears from where its stand-in at the old level was shown, one
 //! that vanishes to where its stand-in at the new level is shown. Also the shown triangles
 //! against the budget, the CPU time of the morph bookkeeping (level requests, `update`, and
-//! the positions of every morphing region's vertices), and the bytes a CPU write of those
-//! positions would upload.
+//! the positions of every region whose vertices move), and the bytes a CPU write of those
+//! positions and normals would upload.
 //!
 //! `cargo bench --no-default-features --bench geomorph`
 
@@ -107,7 +108,12 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
     let (lo, hi) = scene.mesh.bounds().expect("non-empty");
     let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
     let budget = (scene.budget * scene.mesh.triangle_count() as f32) as u32;
+    // Every region starts at its coarsest level (as a new model does), so the budget holds
+    // from the first frame.
     let mut caches = RegionCaches::new(regions);
+    for r in 0..regions.regions().len() {
+        caches.set_triangle_count(regions, r, 0);
+    }
     let mut morphs = Geomorphs::new(regions, duration);
     let mut allocator = Allocator::new();
     let (mut areas, mut inputs, mut counts) = (vec![0.0; obbs.len()], Vec::new(), Vec::new());
@@ -154,15 +160,11 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
             .allocate(&params, &inputs, &mut counts)
             .expect("valid inputs");
         let start = Instant::now();
-        for (r, &c) in counts.iter().enumerate() {
-            if !morphs.is_coarsening(r) {
-                morphs.set_triangle_count(regions, &mut caches, r, c as usize, now);
-            }
-        }
+        morphs.apply_allocation(regions, &mut caches, &counts, budget as usize, now);
         morphs.update(regions, &mut caches, now);
         let mut bytes = 0;
-        if morphs.is_morphing() {
-            for r in 0..regions.regions().len() {
+        for r in 0..regions.regions().len() {
+            if morphs.is_region_moving(regions, r) {
                 morphs.write_positions(regions, r, now, &mut positions);
                 bytes += 24 * positions.len();
             }

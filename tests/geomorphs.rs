@@ -221,11 +221,16 @@ fn a_coarsening_region_counts_its_old_triangles_until_they_go() {
     assert_eq!(morphs.triangle_count(&caches, 0), full, "still morphing");
     morphs.update(&rm, &mut caches, T);
     assert!(morphs.triangle_count(&caches, 0) < full);
-    // Refining is at once.
+    // Refining is at once; the region's vertices then move until T has passed.
     assert_eq!(
         morphs.set_triangle_count(&rm, &mut caches, 0, usize::MAX, 1.0),
         full
     );
+    morphs.update(&rm, &mut caches, 1.0);
+    assert!(morphs.is_region_moving(&rm, 0));
+    morphs.update(&rm, &mut caches, 1.0 + T);
+    assert!((0..rm.regions().len()).all(|r| !morphs.is_region_moving(&rm, r)));
+    assert!(!morphs.is_morphing());
 }
 
 #[test]
@@ -258,5 +263,39 @@ fn a_duration_of_zero_is_the_plain_caches() {
                 assert_eq!(off.position(g, now), mesh.positions[g as usize]);
             }
         }
+    }
+}
+
+#[test]
+fn an_allocation_under_geomorphs_never_shows_more_than_the_budget() {
+    let mesh = testdata_mesh("cow.obj");
+    let rm = regions(&mesh, 8);
+    let mut caches = RegionCaches::new(&rm);
+    for r in 0..rm.regions().len() {
+        caches.set_triangle_count(&rm, r, 0);
+    }
+    let mut morphs = Geomorphs::new(&rm, T);
+    let budget = mesh.triangle_count() / 4;
+    let mut rng = Rng(11);
+    let mut now = 0.0;
+    for frame in 0..300 {
+        // Random wishes that sum to the budget: regions trade triangles every frame.
+        let weights: Vec<f32> = (0..rm.regions().len()).map(|_| rng.unit() + 0.01).collect();
+        let sum: f32 = weights.iter().sum();
+        let counts: Vec<u32> = weights
+            .iter()
+            .map(|w| (w / sum * budget as f32) as u32)
+            .collect();
+        let total = morphs.apply_allocation(&rm, &mut caches, &counts, budget, now);
+        assert!(
+            total <= budget,
+            "frame {frame}: {total} shown, budget {budget}"
+        );
+        now += 1.0 / 60.0;
+        morphs.update(&rm, &mut caches, now);
+        assert!(
+            caches.total_triangles() <= budget,
+            "frame {frame} after update"
+        );
     }
 }

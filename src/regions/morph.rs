@@ -112,6 +112,8 @@ pub struct Geomorphs {
     morphs: HashMap<u32, Morph>,
     normal_morphs: HashMap<u32, NormalMorph>,
     pending: Vec<Option<Pending>>,
+    /// Per region: positions of its own in motion, as of the last [`update`](Self::update).
+    moving: Vec<usize>,
 }
 
 impl Geomorphs {
@@ -173,6 +175,7 @@ impl Geomorphs {
             morphs: HashMap::new(),
             normal_morphs: HashMap::new(),
             pending: vec![None; mesh.regions().len()],
+            moving: vec![0; mesh.regions().len()],
         }
     }
 
@@ -281,6 +284,57 @@ impl Geomorphs {
         }
     }
 
+    /// Applies one frame's allocation (`counts`, one per region, as the budget's allocator
+    /// gives them) under the budget `budget`, so that the triangles shown never exceed it:
+    ///
+    /// - regions already coarsening keep their old triangles and are left alone until they
+    ///   arrive (the allocator should see them as fixed cost at
+    ///   [`triangle_count`](Self::triangle_count));
+    /// - regions asked for fewer triangles start coarsening, and still count their old ones;
+    /// - regions asked for more take only what is left under `budget`, largest request first,
+    ///   so a refinement that needs the triangles of a coarsening elsewhere waits for them
+    ///   (at most [`duration`](Self::duration)).
+    ///
+    /// Returns the triangles shown, all regions together. With a duration of `0`, every count
+    /// is applied as it is.
+    ///
+    /// # Panics
+    /// When `counts` does not have one entry per region, or `mesh` is not the caches' mesh.
+    pub fn apply_allocation(
+        &mut self,
+        mesh: &RegionMesh,
+        caches: &mut RegionCaches,
+        counts: &[u32],
+        budget: usize,
+        now: f32,
+    ) -> usize {
+        assert_eq!(counts.len(), self.pending.len(), "one count per region");
+        let mut refine = Vec::new();
+        for (r, &count) in counts.iter().enumerate() {
+            let (count, shown) = (count as usize, caches.triangle_count(r));
+            if self.duration == 0.0 {
+                self.set_triangle_count(mesh, caches, r, count, now);
+            } else if self.is_coarsening(r) {
+                continue;
+            } else if count < shown {
+                self.set_triangle_count(mesh, caches, r, count, now);
+            } else if count > shown {
+                refine.push(r);
+            }
+        }
+        let mut total = caches.total_triangles();
+        refine.sort_by_key(|&r| std::cmp::Reverse(counts[r] as usize - caches.triangle_count(r)));
+        for r in refine {
+            let shown = caches.triangle_count(r);
+            let grant = (counts[r] as usize - shown).min(budget.saturating_sub(total));
+            if grant > 0 {
+                let reached = self.set_triangle_count(mesh, caches, r, shown + grant, now);
+                total = total + reached - shown;
+            }
+        }
+        total
+    }
+
     /// Ends what has arrived by `now`: coarsenings take their level, finished morphs go.
     /// Call once a frame before drawing.
     ///
@@ -317,6 +371,26 @@ impl Geomorphs {
         let morphs = &self.morphs;
         self.normal_morphs
             .retain(|g, _| morphs.contains_key(&position_of[*g as usize]));
+        self.moving.fill(0);
+        let region_of = mesh.partition().region_of();
+        for &p in self.morphs.keys() {
+            self.moving[region_of[p as usize] as usize] += 1;
+        }
+    }
+
+    /// Whether region `region`'s vertices (its own, or its neighbours' that its border
+    /// triangles use) may be in motion, as of the last [`update`](Self::update): the regions
+    /// whose positions must be written again this frame.
+    ///
+    /// # Panics
+    /// When `region` is out of range or `mesh` is not this instance's mesh.
+    #[must_use]
+    pub fn is_region_moving(&self, mesh: &RegionMesh, region: usize) -> bool {
+        self.moving[region] > 0
+            || mesh.regions()[region]
+                .neighbors
+                .iter()
+                .any(|&n| self.moving.get(n as usize).is_some_and(|&m| m > 0))
     }
 
     /// Where source vertex `g` is shown at `now`.
