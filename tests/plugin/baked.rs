@@ -118,3 +118,81 @@ fn a_missing_baked_file_builds_instead() {
         "built, not loaded"
     );
 }
+
+/// Writes `name` into `dir`: the cow in `regions` clusters, baked.
+fn bake_cow(dir: &std::path::Path, name: &str, regions: usize) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/testdata/meshes/cow.obj"
+    );
+    let (mesh, _) = bevy_aslod::mesh::IndexedMesh::load(path).unwrap();
+    let partition = Partition::clusters(&mesh, regions).unwrap();
+    let options = BuildOptions::default();
+    let cow = mrm::BakedMesh::build(&mesh, &partition, &options).unwrap();
+    let file = MrmFile {
+        build: BuildInfo {
+            source_name: "cow.obj".into(),
+            source_hash: mrm::source_hash(&std::fs::read(path).unwrap()),
+            partition: format!("clusters:{regions}"),
+            writer: "tests/plugin/baked.rs".into(),
+            rigid_delta: None,
+            options,
+        },
+        meshes: vec![("Mesh0/Primitive0".into(), cow)],
+    };
+    std::fs::write(dir.join(name), mrm::write(&file)).unwrap();
+}
+
+#[test]
+fn a_rebaked_file_reloads_and_its_models_rebuild() {
+    let dir = std::env::temp_dir().join(format!("aslod-reload-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    bake_cow(&dir, "cow.mrm", 4);
+    let mut app = app(20_000, dir.to_str().unwrap());
+    let handle: Handle<MultiresMesh> = app.world().resource::<AssetServer>().load("cow.mrm");
+    let model = app
+        .world_mut()
+        .spawn((MultiresModel(handle.clone()), Transform::default()))
+        .id();
+    app.world_mut()
+        .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 3.0)));
+    let regions = |app: &mut App| -> Option<usize> {
+        let instance = app
+            .world()
+            .get::<bevy_aslod::plugin::MultiresInstance>(model)?;
+        Some(instance.region_entities().len())
+    };
+    let mut before = None;
+    for _ in 0..1_000 {
+        app.update();
+        before = regions(&mut app);
+        if before.is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let before = before.expect("the model spawned its regions from the file");
+    // Re-baked with more regions, then reloaded (what Bevy's file watcher does on a change).
+    bake_cow(&dir, "cow.mrm", 12);
+    app.world().resource::<AssetServer>().reload("cow.mrm");
+    let mut after = before;
+    for _ in 0..1_000 {
+        app.update();
+        if let Some(n) = regions(&mut app).filter(|&n| n != before) {
+            after = n;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    assert!(
+        after > before,
+        "{before} regions before the reload, {after} after"
+    );
+    let asset = app
+        .world()
+        .resource::<Assets<MultiresMesh>>()
+        .get(&handle)
+        .unwrap();
+    assert_eq!(asset.region_count(), after);
+    std::fs::remove_dir_all(&dir).ok();
+}
