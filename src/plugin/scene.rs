@@ -35,7 +35,8 @@ use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
 /// (`Mesh0/Primitive0` is `"scene.mrm#Mesh0/Primitive0"`). The glTF still supplies the
 /// skeleton, the materials and the animations. An entry that is missing, fails to load, or
 /// does not fit (a skinned entry with another joint count than the mesh's skin, or a skinned
-/// entry for an unskinned mesh) is built as without a baked file, with a warning.
+/// entry for an unskinned mesh, or joints named otherwise than the skin's joint entities'
+/// `Name`s) is built as without a baked file, with a warning.
 #[derive(Component, Clone, Debug, PartialEq)]
 pub struct MultiresScene {
     /// δ: a skinned vertex whose dominant weight is at least `1 − δ` is rigid. Default
@@ -129,6 +130,8 @@ enum Built {
 struct BuildInputs {
     indexed: Result<crate::mesh::IndexedMesh, crate::mesh::MeshError>,
     inverse_bindposes: Option<Vec<Mat4>>,
+    /// The skin's joints' `Name`s (empty for a joint without one).
+    joint_names: Vec<String>,
     rigid_delta: f32,
     static_partition: PartitionSpec,
 }
@@ -153,10 +156,18 @@ impl BuildInputs {
         )
     }
 
-    /// Whether a baked asset can stand for the mesh these inputs describe.
+    /// Whether a baked asset can stand for the mesh these inputs describe: skinned for a
+    /// skinned mesh, with as many joints, named alike where both sides name them.
     fn fits(&self, asset: &MultiresMesh) -> bool {
         match (&self.inverse_bindposes, asset.skin()) {
-            (Some(ib), Some(skin)) => skin.joint_count() == ib.len(),
+            (Some(ib), Some(skin)) => {
+                let names = skin.joint_names();
+                skin.joint_count() == ib.len()
+                    && (names.is_empty()
+                        || names.iter().zip(&self.joint_names).all(|(baked, here)| {
+                            baked.is_empty() || here.is_empty() || baked == here
+                        }))
+            }
             (None, None) => true,
             _ => false,
         }
@@ -255,6 +266,7 @@ pub(crate) fn convert_scenes(
     mut multires: ResMut<Assets<MultiresMesh>>,
     mut cache: ResMut<SceneAssetCache>,
     server: Res<AssetServer>,
+    names: Query<&Name>,
 ) {
     // Apps without skinning (no `Assets<SkinnedMeshInverseBindposes>`) can still convert
     // unskinned scenes.
@@ -307,6 +319,16 @@ pub(crate) fn convert_scenes(
                             .get(&skin.inverse_bindposes)
                             .map(|b| b.to_vec())
                             .unwrap_or_default()
+                    }),
+                    joint_names: skin.map_or_else(Vec::new, |skin| {
+                        skin.joints
+                            .iter()
+                            .map(|&j| {
+                                names
+                                    .get(j)
+                                    .map_or_else(|_| String::new(), |n| n.as_str().to_owned())
+                            })
+                            .collect()
                     }),
                     rigid_delta: options.rigid_delta,
                     static_partition: options.static_partition,

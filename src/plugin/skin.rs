@@ -41,6 +41,8 @@ pub struct SkinBinding {
     more_than_two: usize,
     /// Vertices whose weights were renormalised or whose unused slots were cleared.
     normalised: usize,
+    /// The joints' names in joint order, from a baked file (empty when built here).
+    joint_names: Vec<String>,
 }
 
 impl SkinBinding {
@@ -53,7 +55,7 @@ impl SkinBinding {
             inverse_bindposes,
             more_than_two,
             normalised,
-            ..
+            joint_names,
         } = skin;
         if kinds.len() != regions.regions().len() {
             return Err(MultiresError::Baked("one skin kind per region is needed"));
@@ -95,7 +97,16 @@ impl SkinBinding {
             inverse_bindposes,
             more_than_two,
             normalised,
+            joint_names,
         })
+    }
+
+    /// The joints' names in joint order, as the file it was baked into gave them (an
+    /// unnamed joint is `""`); empty for a binding built from a mesh.
+    #[inline]
+    #[must_use]
+    pub fn joint_names(&self) -> &[String] {
+        &self.joint_names
     }
 
     /// Per region: rigid or deformable, and its bones.
