@@ -8,26 +8,13 @@ mod common;
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::regions::{Geomorphs, Partition, RegionCaches, RegionMesh};
-use common::{assert_closed, border_edges, grid, sphere, testdata_mesh, welded_directed_edges};
+use common::{
+    Rng, assert_closed, border_edges, grid, sphere, testdata_mesh, welded_directed_edges,
+};
 use glam::Vec3;
 use std::collections::HashSet;
 
 const T: f32 = 0.25;
-
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-
-    fn unit(&mut self) -> f32 {
-        (self.next() >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
 
 fn regions(mesh: &IndexedMesh, k: usize) -> RegionMesh {
     let partition = Partition::clusters(mesh, k).unwrap();

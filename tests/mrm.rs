@@ -11,7 +11,7 @@ use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, FORMAT_VERSION, MrmError, MrmF
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
 use bevy_aslod::refine::VariableMesh;
 use bevy_aslod::regions::{Partition, RegionCaches};
-use common::{grid, sphere, testdata_mesh};
+use common::{Rng, grid, sphere, testdata_mesh};
 use glam::Mat4;
 use glam::Vec2;
 
@@ -247,22 +247,6 @@ fn reseal_at(bytes: &mut [u8], start: usize) {
 fn reseal(bytes: &mut [u8], starts: &[usize]) {
     for &start in starts.iter().rev() {
         reseal_at(bytes, start);
-    }
-}
-
-/// A tiny xorshift generator: the mutations are the same on every run.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
     }
 }
 
