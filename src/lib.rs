@@ -44,7 +44,7 @@ pub mod prelude {
     #[cfg(feature = "bevy")]
     pub use crate::plugin::{
         AslodOverlay, AslodPlugin, AslodStats, AslodSystems, AslodViewport, CountInBudget,
-        FullDetail, LodPriority, LodRegion, MultiresError, MultiresInstance,
+        FullDetail, Geomorph, LodPriority, LodRegion, MultiresError, MultiresInstance,
         MultiresMaterialPlugin, MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels,
         MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera, RegionUpload, ViewDependent,
     };

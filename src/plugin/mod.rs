@@ -142,6 +142,7 @@ impl Plugin for AslodPlugin {
             .register_asset_loader(MrmLoader)
             .register_type::<PolygonBudget>()
             .register_type::<FullDetail>()
+            .register_type::<Geomorph>()
             .register_type::<RegionUpload>()
             .init_resource::<RegionUpload>()
             .init_resource::<render::RenderWrites>()
@@ -305,6 +306,22 @@ impl Default for LodPriority {
 #[require(Transform, Visibility)]
 pub struct MultiresModel(pub Handle<MultiresMesh>);
 
+/// Geomorphs on a [`MultiresModel`]: its level changes take this many seconds instead of
+/// a frame (`regions::Geomorphs`). A refining region changes its triangles at once and its
+/// new vertices grow out of their representatives; a coarsening region keeps its triangles,
+/// and counts them in the budget, until its vanishing vertices have reached their
+/// representatives, so the budget holds during morphs (a lower [`PolygonBudget`] is met once
+/// the coarsening regions arrive, after the morph time). Borders stay closed: a vertex moves
+/// the same way in every region that draws it. `0` (or no component) changes levels at
+/// once.
+///
+/// **Partial:** unskinned, region models only (skinned and [`ViewDependent`] models change
+/// levels at once), and the moving regions' positions and normals are written from the CPU
+/// each frame they move (a vertex upload per moving region), not interpolated on the GPU.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq)]
+#[reflect(Component)]
+pub struct Geomorph(pub f32);
+
 /// A region child of a [`MultiresModel`]: which region of the mesh its `Mesh3d` shows.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq, Eq)]
 #[reflect(Component)]
@@ -354,6 +371,20 @@ pub struct MultiresInstance {
     /// A [`ViewDependent`] model: its variable-resolution level, drawn instead of the
     /// regions (which are hidden and keep their levels).
     fine: Option<refine::FineState>,
+    /// A [`Geomorph`] model: its morphs and the vertex data `SelectLod` wrote for `Upload`.
+    morph: Option<MorphState>,
+}
+
+/// The geomorphs of one unskinned instance.
+#[derive(Debug)]
+struct MorphState {
+    morphs: crate::regions::Geomorphs,
+    /// Per region: its vertices moved last frame (so it is written once more at rest).
+    moved: Vec<bool>,
+    /// Per region: positions and normals to write into its mesh (`ready` when new).
+    positions: Vec<Vec<glam::Vec3>>,
+    normals: Vec<Vec<glam::Vec3>>,
+    ready: Vec<bool>,
 }
 
 /// Where a model's regions sat in the last allocation that included it.

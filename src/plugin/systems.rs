@@ -5,9 +5,9 @@ use super::render::{self, RegionUpload, RenderWrites};
 use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
 use super::tasks::{ComputePool, par_chunks};
 use super::{
-    AslodStats, AslodSystems, AslodViewport, CountInBudget, FullDetail, InputRun, LodPriority,
-    LodRegion, MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, StagedIndices,
-    diagnostics,
+    AslodStats, AslodSystems, AslodViewport, CountInBudget, FullDetail, Geomorph, InputRun,
+    LodPriority, LodRegion, MorphState, MultiresInstance, MultiresMesh, MultiresModel,
+    PolygonBudget, StagedIndices, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
 use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
@@ -208,6 +208,7 @@ pub(super) fn spawn_regions(
             shown: 0,
             region_entities,
             fine: None,
+            morph: None,
         });
     }
 }
@@ -813,13 +814,13 @@ fn region_inputs(
             max_area(cameras, &obb)
         };
         let area = if area.is_finite() { area } else { 0.0 };
-        *input = RegionInput::from_area(
-            area,
-            c,
-            region.min_triangles() as u32,
-            region.max_triangles() as u32,
-            instance.caches.triangle_count(r) as u32,
-        );
+        let shown = instance.caches.triangle_count(r) as u32;
+        // A coarsening region counts its old triangles until they go: fixed cost.
+        let (min, max) = match &instance.morph {
+            Some(m) if m.morphs.is_coarsening(r) => (shown, shown),
+            _ => (region.min_triangles() as u32, region.max_triangles() as u32),
+        };
+        *input = RegionInput::from_area(area, c, min, max, shown);
     }
 }
 
@@ -828,13 +829,21 @@ fn region_inputs(
 /// (copying them is the costly part of an update), for `Upload` to swap in;
 /// skinned models write theirs in `Deform`.
 fn select_lod(
-    mut models: Query<&mut MultiresInstance>,
+    mut models: Query<(&mut MultiresInstance, Option<&Geomorph>)>,
     scratch: Res<AslodScratch>,
+    time: Res<Time>,
     mut stats: ResMut<AslodStats>,
     _main_thread: NonSendMarker,
 ) {
     let start = Instant::now();
-    let mut instances: Vec<Mut<MultiresInstance>> = models.iter_mut().collect();
+    let now = time.elapsed_secs();
+    let mut instances: Vec<Mut<MultiresInstance>> = models
+        .iter_mut()
+        .map(|(mut instance, morph)| {
+            sync_geomorph(&mut instance, morph.map_or(0.0, |m| m.0));
+            instance
+        })
+        .collect();
     // The models this frame's allocation covered take their targets from its counts.
     let fresh = scratch.allocated;
     let counts = &scratch.counts;
@@ -876,17 +885,36 @@ fn select_lod(
             if let Some(run) = run {
                 instance.targets.copy_from_slice(run);
             }
-            let mut shown = 0;
-            for (r, &target) in instance.targets.iter().enumerate() {
-                shown += instance
-                    .caches
-                    .set_triangle_count(&instance.regions, r, target as usize)
-                    as u64;
-            }
+            let shown = if let Some(morph) = &mut instance.morph {
+                // Under the model's own allocation: coarsening regions were fixed at their
+                // shown count there, so the model never shows more than it was given.
+                let budget: u64 = instance.targets.iter().map(|&t| u64::from(t)).sum();
+                let (regions, caches) = (&instance.regions, &mut instance.caches);
+                let m = &mut morph.morphs;
+                m.apply_allocation(regions, caches, &instance.targets, budget as usize, now);
+                m.update(regions, caches, now);
+                morph.stage(regions, now);
+                caches.total_triangles() as u64
+            } else {
+                let mut shown = 0;
+                for (r, &target) in instance.targets.iter().enumerate() {
+                    shown +=
+                        instance
+                            .caches
+                            .set_triangle_count(&instance.regions, r, target as usize)
+                            as u64;
+                }
+                shown
+            };
             instance.shown = shown;
             triangles += shown;
-            // Skinned models write their buffers in `Deform`: never skipped here.
-            instance.settled = instance.skin.is_none();
+            // Skinned models write their buffers in `Deform`, and morphing ones move: never
+            // skipped here.
+            instance.settled = instance.skin.is_none()
+                && instance
+                    .morph
+                    .as_ref()
+                    .is_none_or(|m| !m.morphs.is_morphing());
             if instance.skin.is_none() {
                 // Only the dirty regions' staging slots are touched.
                 for r in 0..instance.staged.len() {
@@ -909,6 +937,56 @@ fn select_lod(
     });
     stats.triangles = totals.into_iter().sum();
     stats.update_ms = start.elapsed().as_secs_f64() * 1e3;
+}
+
+/// Starts or ends an unskinned region model's geomorphs as its [`Geomorph`] says (ending
+/// them puts every vertex back at its own place at the next `Upload`).
+fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32) {
+    let wanted = seconds > 0.0 && instance.skin.is_none() && instance.fine.is_none();
+    match (&mut instance.morph, wanted) {
+        (None, true) => {
+            let n = instance.regions.regions().len();
+            instance.morph = Some(MorphState {
+                morphs: crate::regions::Geomorphs::new(&instance.regions, seconds),
+                moved: vec![false; n],
+                positions: vec![Vec::new(); n],
+                normals: vec![Vec::new(); n],
+                ready: vec![false; n],
+            });
+            instance.settled = false;
+        }
+        (Some(m), true) if m.morphs.duration() != seconds => {
+            m.morphs = crate::regions::Geomorphs::new(&instance.regions, seconds);
+            m.moved.fill(true);
+            instance.settled = false;
+        }
+        (Some(m), false) if m.morphs.duration() > 0.0 => {
+            // Every region back at rest, written once more with its own positions, then the
+            // state goes (`upload_morphs`).
+            m.morphs = crate::regions::Geomorphs::new(&instance.regions, 0.0);
+            m.moved.fill(true);
+            instance.settled = false;
+        }
+        _ => {}
+    }
+}
+
+impl MorphState {
+    /// Writes the positions and normals of every region whose vertices move now or moved
+    /// last frame, for `Upload`.
+    fn stage(&mut self, regions: &crate::regions::RegionMesh, now: f32) {
+        for r in 0..self.moved.len() {
+            let moving = self.morphs.is_region_moving(regions, r);
+            if moving || self.moved[r] {
+                self.morphs
+                    .write_positions(regions, r, now, &mut self.positions[r]);
+                self.morphs
+                    .write_normals(regions, r, now, &mut self.normals[r]);
+                self.ready[r] = true;
+            }
+            self.moved[r] = moving;
+        }
+    }
 }
 
 /// Reads the joints of every skinned model (before `allocate`, which needs the region
@@ -1120,6 +1198,48 @@ fn upload_skinned(instance: &mut MultiresInstance, target: &mut UploadTarget) ->
     changed
 }
 
+/// Writes the positions and normals `SelectLod` staged for a [`Geomorph`] model's moving
+/// regions into their meshes.
+fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
+    let Some(morph) = &mut instance.morph else {
+        return;
+    };
+    for r in 0..morph.ready.len() {
+        if !std::mem::take(&mut morph.ready[r]) {
+            continue;
+        }
+        let Some(&id) = instance.mesh_ids.get(r) else {
+            continue;
+        };
+        let Some(mesh) = target.mesh(id) else {
+            continue;
+        };
+        let n = morph.positions[r].len();
+        for (attribute, values) in [
+            (Mesh::ATTRIBUTE_POSITION, &morph.positions[r]),
+            (Mesh::ATTRIBUTE_NORMAL, &morph.normals[r]),
+        ] {
+            if values.is_empty() {
+                continue;
+            }
+            if let Ok(Some(VertexAttributeValues::Float32x3(slots))) =
+                mesh.try_attribute_mut_option(attribute)
+                && slots.len() == values.len()
+            {
+                for (slot, v) in slots.iter_mut().zip(values) {
+                    *slot = v.to_array();
+                }
+            }
+        }
+        if n > 0 {
+            target.vertices_changed(id, &[0, n as u32 - 1], false);
+        }
+    }
+    if morph.morphs.duration() == 0.0 && !morph.moved.contains(&true) {
+        instance.morph = None;
+    }
+}
+
 /// `Upload`: swap in the index buffers `SelectLod` wrote for dirty regions, write what
 /// `Deform` produced for skinned ones, and nothing else. On the direct path
 /// ([`RegionUpload::IndicesOnly`]) the meshes change without a change event and the new bytes
@@ -1175,6 +1295,7 @@ fn upload(
                 target.indices_changed(id, entity);
             }
         }
+        upload_morphs(instance, &mut target);
     }
     stats.upload_bytes = target.bytes;
     stats.regions_changed = changed;

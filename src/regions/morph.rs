@@ -475,6 +475,31 @@ impl Geomorphs {
         );
     }
 
+    /// Writes the normal each of region `region`'s local vertices is shown with at `now`
+    /// into `out`; `false` (and `out` empty) when the mesh has no normals.
+    ///
+    /// # Panics
+    /// When `region` is out of range or `mesh` is not this instance's mesh.
+    pub fn write_normals(
+        &self,
+        mesh: &RegionMesh,
+        region: usize,
+        now: f32,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
+        out.clear();
+        if self.normals.is_none() {
+            return false;
+        }
+        out.extend(
+            mesh.regions()[region]
+                .global
+                .iter()
+                .map(|&g| self.normal(g, now).unwrap_or(Vec3::Y)),
+        );
+        true
+    }
+
     /// Where position `p` is shown at `now`, following a vanishing position's
     /// representative while it moves.
     fn shown_position(&self, p: u32, now: f32, depth: usize) -> Vec3 {

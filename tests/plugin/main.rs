@@ -5,6 +5,7 @@
 #![cfg(feature = "bevy")]
 
 mod baked;
+mod geomorph;
 mod models;
 mod skinned;
 mod view_dependent;
