@@ -17,8 +17,8 @@ use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool, futures::check_ready};
 use bevy_aslod::plugin::{
-    AslodOverlay, AslodPlugin, AslodStats, FullDetail, LodRegion, MultiresError, MultiresInstance,
-    MultiresMesh, MultiresModel,
+    AslodOverlay, AslodPlugin, AslodStats, FullDetail, Geomorph, LodRegion, MultiresError,
+    MultiresInstance, MultiresMesh, MultiresModel,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use clap::Parser;
@@ -42,6 +42,7 @@ fn main() {
         None,
     );
     app.add_plugins(AslodPlugin::default().with_budget(BUDGET))
+        .insert_resource(MorphTime(args.geomorph))
         .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)))
         .insert_resource(GlobalAmbientLight {
             brightness: 400.0,
@@ -79,7 +80,14 @@ struct Args {
     /// Where the headless run writes (default: silvretta-shots).
     #[arg(long, value_name = "DIR")]
     screenshot: Option<PathBuf>,
+    /// Geomorphs: spread each level change over this many seconds (0: at once).
+    #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
+    geomorph: f32,
 }
+
+/// The terrain's [`Geomorph`] time (`--geomorph`).
+#[derive(Resource)]
+struct MorphTime(f32);
 
 // ---------------------------------------------------------------------------------------------
 // Scene.
@@ -194,6 +202,7 @@ fn finish_terrain(
     build: Option<ResMut<TerrainBuild>>,
     mut multires: ResMut<Assets<MultiresMesh>>,
     shading: Res<Shading>,
+    morph: Res<MorphTime>,
     mut exit: MessageWriter<AppExit>,
 ) {
     let Some(mut build) = build else {
@@ -216,6 +225,7 @@ fn finish_terrain(
                 MultiresModel(multires.add(asset)),
                 MeshMaterial3d(shading.terrain.clone()),
                 Transform::default(),
+                Geomorph(morph.0),
             ));
         }
         Err(e) => {
