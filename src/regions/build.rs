@@ -147,6 +147,7 @@ impl RegionMesh {
             regions,
             vertex_count: mesh.vertex_count(),
             built: true,
+            morph_tables: std::sync::OnceLock::new(),
         })
     }
 }

@@ -259,6 +259,8 @@ pub struct RegionMesh {
     /// Built here, not read from a file: the fin-prone lists are the builder's, so debug
     /// builds check that no other border triangles meet. A file's are only range-checked.
     pub(crate) built: bool,
+    /// The geomorph tables, made by the first [`Geomorphs`] of the mesh and shared by all.
+    pub(crate) morph_tables: std::sync::OnceLock<std::sync::Arc<morph::MorphTables>>,
 }
 
 /// Equal regions, however they were made.
@@ -282,6 +284,7 @@ impl RegionMesh {
             regions,
             vertex_count,
             built: false,
+            morph_tables: std::sync::OnceLock::new(),
         }
     }
 

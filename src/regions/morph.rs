@@ -4,6 +4,7 @@
 use super::{RegionCaches, RegionMesh};
 use glam::Vec3;
 use std::collections::HashMap;
+use std::sync::Arc;
 
 /// Where a morphing position is heading.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,7 +54,9 @@ struct Pending {
 ///   in every region that draws it, so borders stay closed during a morph.
 ///
 /// A duration of `0` is the plain caches: every change at once, every vertex at its own
-/// position.
+/// position. The tables a morph reads (about 50 bytes per source vertex) are made by the
+/// mesh's first `Geomorphs` and shared by the others; an instance keeps only its vertices in
+/// motion.
 ///
 /// ```
 /// use bevy_aslod::mesh::IndexedMesh;
@@ -91,6 +94,18 @@ struct Pending {
 #[derive(Clone, Debug)]
 pub struct Geomorphs {
     duration: f32,
+    /// What a mesh's morphs are made of, shared by every instance of the mesh.
+    tables: Arc<MorphTables>,
+    morphs: HashMap<u32, Morph>,
+    normal_morphs: HashMap<u32, NormalMorph>,
+    pending: Vec<Option<Pending>>,
+    /// Per region: positions of its own in motion, as of the last [`update`](Self::update).
+    moving: Vec<usize>,
+}
+
+/// A [`RegionMesh`]'s morph tables (made once per mesh, on the first [`Geomorphs`]).
+#[derive(Debug)]
+pub(crate) struct MorphTables {
     /// Per source vertex: its position (the first vertex there). Morphs move positions, so
     /// every copy of a seam vertex moves alike, even one its region no longer draws.
     position_of: Vec<u32>,
@@ -109,11 +124,6 @@ pub struct Geomorphs {
     counts: Vec<Vec<usize>>,
     positions: Vec<Vec3>,
     normals: Option<Vec<Vec3>>,
-    morphs: HashMap<u32, Morph>,
-    normal_morphs: HashMap<u32, NormalMorph>,
-    pending: Vec<Option<Pending>>,
-    /// Per region: positions of its own in motion, as of the last [`update`](Self::update).
-    moving: Vec<usize>,
 }
 
 impl Geomorphs {
@@ -121,6 +131,24 @@ impl Geomorphs {
     /// `mesh`.
     #[must_use]
     pub fn new(mesh: &RegionMesh, duration: f32) -> Self {
+        let tables = mesh
+            .morph_tables
+            .get_or_init(|| Arc::new(MorphTables::new(mesh)))
+            .clone();
+        let regions = mesh.regions().len();
+        Self {
+            duration: if duration > 0.0 { duration } else { 0.0 },
+            tables,
+            morphs: HashMap::new(),
+            normal_morphs: HashMap::new(),
+            pending: vec![None; regions],
+            moving: vec![0; regions],
+        }
+    }
+}
+
+impl MorphTables {
+    fn new(mesh: &RegionMesh) -> Self {
         let n = mesh.vertex_count();
         let source = mesh.source_vertices();
         let position_of = crate::mesh::weld_positions(&source.positions).remap;
@@ -162,7 +190,6 @@ impl Geomorphs {
             counts.push(pm.level_triangle_counts());
         }
         Self {
-            duration: if duration > 0.0 { duration } else { 0.0 },
             position_of,
             copies_start,
             copies,
@@ -172,13 +199,11 @@ impl Geomorphs {
             counts,
             positions: source.positions,
             normals: source.normals,
-            morphs: HashMap::new(),
-            normal_morphs: HashMap::new(),
-            pending: vec![None; mesh.regions().len()],
-            moving: vec![0; mesh.regions().len()],
         }
     }
+}
 
+impl Geomorphs {
     /// The morph time in seconds (`0`: off).
     #[inline]
     #[must_use]
@@ -220,7 +245,7 @@ impl Geomorphs {
             return caches.set_triangle_count(mesh, region, triangles);
         }
         let shown = caches.level(region);
-        let counts = &self.counts[region];
+        let counts = &self.tables.counts[region];
         let goal = counts
             .iter()
             .position(|&c| c <= triangles)
@@ -232,16 +257,16 @@ impl Geomorphs {
         }
         // Vertices heading for representatives at a level no longer wanted turn back.
         for step in goal.max(shown)..before.max(shown) {
-            for i in 0..self.removed_at[region][step].len() {
-                self.retarget(self.removed_at[region][step][i], Toward::Own, 0, now);
+            for i in 0..self.tables.removed_at[region][step].len() {
+                self.retarget(self.tables.removed_at[region][step][i], Toward::Own, 0, now);
             }
         }
         if goal <= shown {
             // Refine now: what appears starts on its representative at the shown level.
             self.pending[region] = None;
             for step in goal..shown {
-                for i in 0..self.removed_at[region][step].len() {
-                    let p = self.removed_at[region][step][i];
+                for i in 0..self.tables.removed_at[region][step].len() {
+                    let p = self.tables.removed_at[region][step][i];
                     let from = self.representative(p, shown);
                     let normals: Vec<(u32, Vec3)> = self
                         .copies_of(p)
@@ -268,8 +293,8 @@ impl Geomorphs {
             // Coarsen later: what vanishes moves onto its representative at the goal first
             // (a vertex already on its way there keeps going).
             for step in shown..goal {
-                for i in 0..self.removed_at[region][step].len() {
-                    let p = self.removed_at[region][step][i];
+                for i in 0..self.tables.removed_at[region][step].len() {
+                    let p = self.tables.removed_at[region][step][i];
                     let to = Toward::Position(self.representative(p, goal));
                     if self.morphs.get(&p).is_none_or(|m| m.toward != to) {
                         self.retarget(p, to, goal, now);
@@ -350,22 +375,22 @@ impl Geomorphs {
             }
             self.pending[region] = None;
             let shown = caches.level(region);
-            caches.set_triangle_count(mesh, region, self.counts[region][p.level]);
+            caches.set_triangle_count(mesh, region, self.tables.counts[region][p.level]);
             for step in shown..p.level {
-                for &q in &self.removed_at[region][step] {
+                for &q in &self.tables.removed_at[region][step] {
                     self.morphs.remove(&q);
                     let (a, b) = (
-                        self.copies_start[q as usize],
-                        self.copies_start[q as usize + 1],
+                        self.tables.copies_start[q as usize],
+                        self.tables.copies_start[q as usize + 1],
                     );
-                    for &g in &self.copies[a as usize..b as usize] {
+                    for &g in &self.tables.copies[a as usize..b as usize] {
                         self.normal_morphs.remove(&g);
                     }
                 }
             }
         }
         let duration = self.duration;
-        let position_of = &self.position_of;
+        let position_of = &self.tables.position_of;
         self.morphs
             .retain(|_, m| m.toward != Toward::Own || now < m.start + duration);
         let morphs = &self.morphs;
@@ -399,7 +424,7 @@ impl Geomorphs {
     /// When `g` is not a vertex of the mesh.
     #[must_use]
     pub fn position(&self, g: u32, now: f32) -> Vec3 {
-        self.shown_position(self.position_of[g as usize], now, 0)
+        self.shown_position(self.tables.position_of[g as usize], now, 0)
     }
 
     /// The normal source vertex `g` is shown with at `now` (interpolated and normalised),
@@ -413,9 +438,9 @@ impl Geomorphs {
     }
 
     fn shown_normal(&self, g: u32, now: f32, depth: usize) -> Option<Vec3> {
-        let normals = self.normals.as_ref()?;
+        let normals = self.tables.normals.as_ref()?;
         let own = normals[g as usize];
-        let p = self.position_of[g as usize];
+        let p = self.tables.position_of[g as usize];
         let (Some(m), Some(nm)) = (self.morphs.get(&p), self.normal_morphs.get(&g)) else {
             return Some(own);
         };
@@ -452,7 +477,7 @@ impl Geomorphs {
     /// When `g` is not a vertex of the mesh.
     #[must_use]
     pub fn stand_in(&self, g: u32, level: usize) -> u32 {
-        self.representative(self.position_of[g as usize], level)
+        self.representative(self.tables.position_of[g as usize], level)
     }
 
     /// How far morph `m` has come at `now`, `0.0..=1.0`.
@@ -488,7 +513,7 @@ impl Geomorphs {
         out: &mut Vec<Vec3>,
     ) -> bool {
         out.clear();
-        if self.normals.is_none() {
+        if self.tables.normals.is_none() {
             return false;
         }
         out.extend(
@@ -503,7 +528,7 @@ impl Geomorphs {
     /// Where position `p` is shown at `now`, following a vanishing position's
     /// representative while it moves.
     fn shown_position(&self, p: u32, now: f32, depth: usize) -> Vec3 {
-        let own = self.positions[p as usize];
+        let own = self.tables.positions[p as usize];
         let Some(m) = self.morphs.get(&p).filter(|_| depth < 64) else {
             return own;
         };
@@ -521,10 +546,10 @@ impl Geomorphs {
     /// The source vertices at position `p`.
     fn copies_of(&self, p: u32) -> &[u32] {
         let (a, b) = (
-            self.copies_start[p as usize],
-            self.copies_start[p as usize + 1],
+            self.tables.copies_start[p as usize],
+            self.tables.copies_start[p as usize + 1],
         );
-        &self.copies[a as usize..b as usize]
+        &self.tables.copies[a as usize..b as usize]
     }
 
     /// Starts position `p` toward `toward` from where it is shown now (nothing when it is
@@ -559,8 +584,8 @@ impl Geomorphs {
     fn representative(&self, mut p: u32, level: usize) -> u32 {
         // Each move is to a later step's position, so the chain ends; the bound guards a
         // damaged file's regions.
-        for _ in 0..self.parent.len() {
-            match self.parent.get(p as usize) {
+        for _ in 0..self.tables.parent.len() {
+            match self.tables.parent.get(p as usize) {
                 Some(&(step, to)) if step != u32::MAX && (step as usize) < level => p = to,
                 _ => break,
             }
@@ -571,8 +596,8 @@ impl Geomorphs {
     /// The vertex whose attributes stand for vertex `g` at `level` (as far as its recorded
     /// moves go: a copy no triangle uses any more moves no further).
     fn vertex_representative(&self, mut g: u32, level: usize) -> u32 {
-        for _ in 0..self.vertex_parent.len() {
-            match self.vertex_parent.get(g as usize) {
+        for _ in 0..self.tables.vertex_parent.len() {
+            match self.tables.vertex_parent.get(g as usize) {
                 Some(&(step, to)) if step != u32::MAX && (step as usize) < level => g = to,
                 _ => break,
             }
