@@ -1,6 +1,6 @@
 //! Whole multiresolution assets ([`BakedMesh`]) as `.mrm` files, and back, checked.
 
-use super::container::{self, Reader, Section};
+use super::container::{self, Reader, Section, f32s};
 use super::progressive::{self, Counts, section};
 use super::{BakeError, BakedMesh, BakedSkin, BuildInfo, FORMAT_VERSION, MrmError, MrmFile};
 use crate::budget::Obb;
@@ -358,9 +358,8 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
         return Err(r.invalid(8, "the region count is zero or above the vertex count"));
     }
 
-    let mut rp = Reader::new(section(&sections, b"PART")?);
-    let region_of = rp.items::<4, _>(n, u32::from_le_bytes)?;
-    rp.finish()?;
+    let (region_of, rp) =
+        Reader::whole::<4, _>(section(&sections, b"PART")?, n, u32::from_le_bytes)?;
     let mut sizes = vec![0usize; region_count];
     for (v, &id) in region_of.iter().enumerate() {
         let Some(size) = sizes.get_mut(id as usize) else {
@@ -372,18 +371,15 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
         return Err(rp.invalid(0, "a region has no vertex"));
     }
 
-    let mut ro = Reader::new(section(&sections, b"OBBS")?);
-    let obbs = ro.items::<OBB_BYTES, _>(region_count, |b| {
-        let f: [f32; 15] = std::array::from_fn(|i| {
-            f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
-        });
-        Obb {
-            center: Vec3::from_slice(&f[0..3]),
-            axes: Mat3::from_cols_slice(&f[3..12]),
-            half_extents: Vec3::from_slice(&f[12..15]),
-        }
-    })?;
-    ro.finish()?;
+    let (obbs, ro) =
+        Reader::whole::<OBB_BYTES, _>(section(&sections, b"OBBS")?, region_count, |b| {
+            let f = f32s::<15>(&b);
+            Obb {
+                center: Vec3::from_slice(&f[0..3]),
+                axes: Mat3::from_cols_slice(&f[3..12]),
+                half_extents: Vec3::from_slice(&f[12..15]),
+            }
+        })?;
     let finite = |o: &Obb| o.center.is_finite() && o.axes.is_finite() && o.half_extents.is_finite();
     if let Some(k) = obbs.iter().position(|o| !finite(o)) {
         return Err(ro.invalid(OBB_BYTES * k, "a box is not finite"));
@@ -492,9 +488,8 @@ fn read_region(
     if !(lo.is_finite() && hi.is_finite()) {
         return Err(r.invalid(32, "the bounds are not finite"));
     }
-    let mut rg = Reader::new(section(&sections, b"GLOB")?);
-    let global = rg.items::<4, _>(local, u32::from_le_bytes)?;
-    rg.finish()?;
+    let (global, rg) =
+        Reader::whole::<4, _>(section(&sections, b"GLOB")?, local, u32::from_le_bytes)?;
     if let Some(k) = global
         .iter()
         .position(|&g| g as usize >= source.vertex_count())
@@ -584,11 +579,7 @@ fn read_skin(s: Section<'_>, region_count: usize) -> Result<BakedSkin, MrmError>
         kinds.push(kind);
     }
     let at = (r.offset() - s.offset) as usize;
-    let inverse_bindposes = r.items::<64, _>(joints, |b| {
-        Mat4::from_cols_array(&std::array::from_fn(|i| {
-            f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
-        }))
-    })?;
+    let inverse_bindposes = r.items::<64, _>(joints, |b| Mat4::from_cols_array(&f32s::<16>(&b)))?;
     if let Some(k) = inverse_bindposes.iter().position(|m| !m.is_finite()) {
         return Err(r.invalid(at + 64 * k, "an inverse bind matrix is not finite"));
     }

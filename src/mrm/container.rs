@@ -219,6 +219,13 @@ pub(crate) fn tag_name(tag: [u8; 4]) -> String {
         .to_owned()
 }
 
+/// `K` little-endian `f32`s from the start of `b`.
+pub(crate) fn f32s<const K: usize>(b: &[u8]) -> [f32; K] {
+    std::array::from_fn(|i| {
+        f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
+    })
+}
+
 /// Reads little-endian values from one section, with errors that name it and the offset.
 pub(crate) struct Reader<'a> {
     section: Section<'a>,
@@ -312,6 +319,19 @@ impl<'a> Reader<'a> {
             .chunks_exact(N)
             .map(|c| f(c.try_into().unwrap_or([0; N])))
             .collect())
+    }
+
+    /// A whole section of `count` items of `N` bytes ([`items`](Self::items), then
+    /// [`finish`](Self::finish)): the items, and the reader for errors about them.
+    pub(crate) fn whole<const N: usize, T>(
+        section: Section<'a>,
+        count: usize,
+        f: impl Fn([u8; N]) -> T,
+    ) -> Result<(Vec<T>, Self), MrmError> {
+        let mut r = Self::new(section);
+        let items = r.items(count, f)?;
+        r.finish()?;
+        Ok((items, r))
     }
 
     /// Fails unless every byte was read.

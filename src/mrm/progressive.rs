@@ -1,6 +1,6 @@
 //! A [`ProgressiveMesh`] as `.mrm` sections, and back, checked.
 
-use super::container::{Reader, Section, Sections};
+use super::container::{Reader, Section, Sections, f32s};
 use super::{FORMAT_VERSION, MrmError};
 use crate::mesh::IndexedMesh;
 use crate::multires::ProgressiveMesh;
@@ -237,9 +237,11 @@ pub(super) fn read_mesh(
             u32::from_le_bytes,
         )?)
     };
-    let mut r = Reader::new(section(sections, b"ERRS")?);
-    let errors = r.items::<2, _>(counts.steps, u16::from_le_bytes)?;
-    r.finish()?;
+    let (errors, r) = Reader::whole::<2, _>(
+        section(sections, b"ERRS")?,
+        counts.steps,
+        u16::from_le_bytes,
+    )?;
     let mut previous = 0.0f32;
     for (k, &e) in errors.iter().enumerate() {
         let e = error_from_u16(e);
@@ -293,17 +295,8 @@ pub(super) fn read_vertices(
             return Err(r.invalid(4, "a section is missing or present against the flags"));
         }
     }
-    let f32s = |b: [u8; 4]| f32::from_le_bytes(b);
     let read_vec3 = |tag: &[u8; 4]| -> Result<Vec<Vec3>, MrmError> {
-        let mut r = Reader::new(section(tag)?);
-        let v = r.items::<12, _>(n, |b| {
-            Vec3::new(
-                f32s([b[0], b[1], b[2], b[3]]),
-                f32s([b[4], b[5], b[6], b[7]]),
-                f32s([b[8], b[9], b[10], b[11]]),
-            )
-        })?;
-        r.finish()?;
+        let (v, r) = Reader::whole::<12, _>(section(tag)?, n, |b| Vec3::from(f32s::<3>(&b)))?;
         if let Some(k) = v.iter().position(|p| !p.is_finite()) {
             return Err(r.invalid(12 * k, "a value is not finite"));
         }
@@ -314,38 +307,21 @@ pub(super) fn read_vertices(
         .then(|| read_vec3(b"NRM "))
         .transpose()?;
     let uvs = (attributes & UVS != 0)
-        .then(|| -> Result<Vec<Vec2>, MrmError> {
-            let mut r = Reader::new(section(b"UV0 ")?);
-            let v = r.items::<8, _>(n, |b| {
-                Vec2::new(
-                    f32s([b[0], b[1], b[2], b[3]]),
-                    f32s([b[4], b[5], b[6], b[7]]),
-                )
-            })?;
-            r.finish()?;
-            Ok(v)
-        })
-        .transpose()?;
+        .then(|| Reader::whole::<8, _>(section(b"UV0 ")?, n, |b| Vec2::from(f32s::<2>(&b))))
+        .transpose()?
+        .map(|(v, _)| v);
     let joints = (attributes & JOINTS != 0)
-        .then(|| -> Result<Vec<[u16; 4]>, MrmError> {
-            let mut r = Reader::new(section(b"JNT ")?);
-            let v = r.items::<8, _>(n, |b| {
+        .then(|| {
+            Reader::whole::<8, _>(section(b"JNT ")?, n, |b| {
                 [0, 2, 4, 6].map(|k| u16::from_le_bytes([b[k], b[k + 1]]))
-            })?;
-            r.finish()?;
-            Ok(v)
+            })
         })
-        .transpose()?;
+        .transpose()?
+        .map(|(v, _)| v);
     let weights = (attributes & WEIGHTS != 0)
-        .then(|| -> Result<Vec<[f32; 4]>, MrmError> {
-            let mut r = Reader::new(section(b"WGT ")?);
-            let v = r.items::<16, _>(n, |b| {
-                [0, 4, 8, 12].map(|k| f32s([b[k], b[k + 1], b[k + 2], b[k + 3]]))
-            })?;
-            r.finish()?;
-            Ok(v)
-        })
-        .transpose()?;
+        .then(|| Reader::whole::<16, _>(section(b"WGT ")?, n, |b| f32s::<4>(&b)))
+        .transpose()?
+        .map(|(v, _)| v);
     Ok(IndexedMesh {
         positions,
         normals,
@@ -393,21 +369,14 @@ where
     C: Corner,
 {
     let section = |tag: &[u8; 4]| section(sections, tag);
-    let mut r = Reader::new(section(b"IDX ")?);
-    let indices = r.items::<VB, _>(counts.indices, &vertex)?;
-    r.finish()?;
+    let (indices, r) = Reader::whole::<VB, _>(section(b"IDX ")?, counts.indices, &vertex)?;
     if let Some(k) = first_out_of_range(&indices, counts.vertices) {
         return Err(r.invalid(VB * k, "an index names a vertex past the vertex table"));
     }
-    let mut rs = Reader::new(section(b"STEP")?);
-    let steps = rs.items::<HB, _>(counts.steps, header)?;
-    rs.finish()?;
-    let mut rc = Reader::new(section(b"CORN")?);
-    let corners = rc.items::<CB, _>(counts.corners, corner)?;
-    rc.finish()?;
-    let mut rp = Reader::new(section(b"PAIR")?);
-    let raw = rp.items::<VB, _>(counts.pairs.saturating_mul(2), &vertex)?;
-    rp.finish()?;
+    let (steps, rs) = Reader::whole::<HB, _>(section(b"STEP")?, counts.steps, header)?;
+    let (corners, rc) = Reader::whole::<CB, _>(section(b"CORN")?, counts.corners, corner)?;
+    let pair_values = counts.pairs.saturating_mul(2);
+    let (raw, rp) = Reader::whole::<VB, _>(section(b"PAIR")?, pair_values, &vertex)?;
     if let Some(k) = first_out_of_range(&raw, counts.vertices) {
         return Err(rp.invalid(VB * k, "a pair names a vertex past the vertex table"));
     }
