@@ -98,9 +98,6 @@ fn read_local<'a>(
         offset: 0,
         needed: HEADER as u64,
     })?;
-    if header[..8] != MAGIC {
-        return Err(MrmError::NotMrm);
-    }
     let version = u32::from_le_bytes(header[8..12].try_into().unwrap_or_default());
     if version > supported {
         return Err(MrmError::NewerVersion {

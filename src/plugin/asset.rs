@@ -108,19 +108,25 @@ impl MultiresMesh {
     /// Wraps already built regions and fits one box per region (on its own vertices).
     #[must_use]
     pub fn from_regions(regions: RegionMesh) -> Self {
-        let obbs = regions
-            .regions()
-            .iter()
-            .map(Region::obb)
-            .collect::<Arc<[Obb]>>();
+        let obbs = regions.regions().iter().map(Region::obb).collect();
+        Self::from_parts(regions, obbs, None, None)
+    }
+
+    /// The asset of its parts; the bounds are the axis-aligned box around the region boxes.
+    fn from_parts(
+        regions: RegionMesh,
+        obbs: Arc<[Obb]>,
+        skin: Option<super::skin::SkinBinding>,
+        variable: Option<VariableMesh>,
+    ) -> Self {
         let corners: Vec<Vec3> = obbs.iter().flat_map(Obb::corners).collect();
         let bounds = fit_aabb(&corners).unwrap_or(Obb::from_aabb(Vec3::ZERO, Vec3::ZERO));
         Self {
             regions: Arc::new(regions),
             obbs,
             bounds,
-            skin: None,
-            variable: None,
+            skin: skin.map(Arc::new),
+            variable: variable.map(Arc::new),
         }
     }
 
@@ -158,15 +164,7 @@ impl MultiresMesh {
             .map(|s| super::skin::SkinBinding::from_baked(&regions, s))
             .transpose()?;
         let variable = variable.map(VariableMesh::new).transpose()?;
-        let corners: Vec<Vec3> = obbs.iter().flat_map(Obb::corners).collect();
-        let bounds = fit_aabb(&corners).unwrap_or(Obb::from_aabb(Vec3::ZERO, Vec3::ZERO));
-        Ok(Self {
-            regions: Arc::new(regions),
-            obbs: obbs.into(),
-            bounds,
-            skin: skin.map(Arc::new),
-            variable: variable.map(Arc::new),
-        })
+        Ok(Self::from_parts(regions, obbs.into(), skin, variable))
     }
 
     /// Adds the refinement data a [`ViewDependent`](super::ViewDependent) model needs: the

@@ -163,10 +163,10 @@ impl BuildInputs {
             (Some(ib), Some(skin)) => {
                 let names = skin.joint_names();
                 skin.joint_count() == ib.len()
-                    && (names.is_empty()
-                        || names.iter().zip(&self.joint_names).all(|(baked, here)| {
-                            baked.is_empty() || here.is_empty() || baked == here
-                        }))
+                    && names
+                        .iter()
+                        .zip(&self.joint_names)
+                        .all(|(baked, here)| baked.is_empty() || here.is_empty() || baked == here)
             }
             (None, None) => true,
             _ => false,

@@ -566,8 +566,11 @@ fn allocate(
     let cameras = &scratch.cameras;
     let views = &scratch.views;
     let full_detail = full_detail.0;
+    // Returns the counts of the view-dependent models without a budget, refined here: they
+    // are fixed cost.
     let fill = |chunk: &mut [AreaJob<'_>]| {
         let mut scratch = AreaScratch::default();
+        let mut tolerance_only = 0u64;
         for ((instance, transform, priority), offset, out) in chunk {
             instance.input_run = InputRun {
                 allocation: serial,
@@ -579,6 +582,7 @@ fn allocate(
                 // frame's fixed cost for the allocation.
                 if let Some(fine) = instance.fine.as_mut().filter(|f| !f.settings.budgeted) {
                     fine.select();
+                    tolerance_only += fine.triangle_count() as u64;
                 }
                 continue;
             }
@@ -592,16 +596,9 @@ fn allocate(
                 out,
             );
         }
+        tolerance_only
     };
-    par_chunks(&mut jobs, fill);
-    drop(jobs);
-    // View-dependent models without a budget, refined above, are fixed cost.
-    let tolerance_only: u64 = models
-        .iter()
-        .filter_map(|(i, ..)| i.fine.as_ref())
-        .filter(|f| !f.settings.budgeted)
-        .map(|f| f.triangle_count() as u64)
-        .sum();
+    let tolerance_only: u64 = par_chunks(&mut jobs, fill).into_iter().sum();
     let fixed_cost = u32::try_from(fixed_cost + tolerance_only).unwrap_or(u32::MAX);
     stats.models = model_count;
     stats.regions = scratch.inputs.len();
@@ -840,7 +837,10 @@ fn select_lod(
     let mut instances: Vec<Mut<MultiresInstance>> = models
         .iter_mut()
         .map(|(mut instance, morph)| {
-            sync_geomorph(&mut instance, morph.map_or(0.0, |m| m.0));
+            let seconds = morph.map_or(0.0, |m| m.0);
+            if seconds > 0.0 || instance.morph.is_some() {
+                sync_geomorph(&mut instance, seconds);
+            }
             instance
         })
         .collect();

@@ -2,6 +2,7 @@
 //! moves vertices over a time `T` instead of at once.
 
 use super::{RegionCaches, RegionMesh};
+use crate::skin::{Buckets, buckets};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -47,8 +48,8 @@ struct Pending {
 ///   [`duration`](Self::duration) seconds.
 /// - **Coarsening** keeps the old triangles: the vertices that vanish move onto their
 ///   representatives at the new level first, and the region takes the new level when they
-///   arrive ([`update`](Self::update)). Until then it shows, and counts, its old triangles:
-///   [`triangle_count`](Self::triangle_count) is what a budget must charge it.
+///   arrive ([`update`](Self::update)). Until then it shows, and counts, its old triangles
+///   ([`RegionCaches::triangle_count`] is what a budget must charge it).
 /// - A region that changes again while morphing continues from where its vertices are.
 /// - Positions belong to source vertices, not to regions: a border vertex moves the same way
 ///   in every region that draws it, so borders stay closed during a morph.
@@ -86,9 +87,9 @@ struct Pending {
 /// let full = caches.triangle_count(0);
 /// morphs.set_triangle_count(&regions, &mut caches, 0, 4, 0.0);
 /// assert!(morphs.is_coarsening(0));
-/// assert_eq!(morphs.triangle_count(&caches, 0), full);
+/// assert_eq!(caches.triangle_count(0), full);
 /// morphs.update(&regions, &mut caches, 0.25);
-/// assert!(morphs.triangle_count(&caches, 0) <= 4);
+/// assert!(caches.triangle_count(0) <= 4);
 /// # Ok::<(), bevy_aslod::regions::RegionError>(())
 /// ```
 #[derive(Clone, Debug)]
@@ -109,9 +110,8 @@ pub(crate) struct MorphTables {
     /// Per source vertex: its position (the first vertex there). Morphs move positions, so
     /// every copy of a seam vertex moves alike, even one its region no longer draws.
     position_of: Vec<u32>,
-    /// Per position: the source vertices there (ranges of `copies`).
-    copies_start: Vec<u32>,
-    copies: Vec<u32>,
+    /// Per position: the source vertices there.
+    copies: Buckets,
     /// Per region, per step: the positions that step removes.
     removed_at: Vec<Vec<Vec<u32>>>,
     /// Per position: the owner's step that removes it (`u32::MAX`: never) and the position
@@ -152,19 +152,7 @@ impl MorphTables {
         let n = mesh.vertex_count();
         let source = mesh.source_vertices();
         let position_of = crate::mesh::weld_positions(&source.positions).remap;
-        let mut copies_start = vec![0u32; n + 1];
-        for &p in &position_of {
-            copies_start[p as usize + 1] += 1;
-        }
-        for i in 0..n {
-            copies_start[i + 1] += copies_start[i];
-        }
-        let mut fill = copies_start.clone();
-        let mut copies = vec![0u32; n];
-        for (g, &p) in position_of.iter().enumerate() {
-            copies[fill[p as usize] as usize] = g as u32;
-            fill[p as usize] += 1;
-        }
+        let copies = buckets(&position_of, n);
         let mut parent = vec![(u32::MAX, u32::MAX); n];
         let mut vertex_parent = vec![(u32::MAX, u32::MAX); n];
         let mut removed_at = Vec::with_capacity(mesh.regions().len());
@@ -191,7 +179,6 @@ impl MorphTables {
         }
         Self {
             position_of,
-            copies_start,
             copies,
             removed_at,
             parent,
@@ -215,16 +202,6 @@ impl Geomorphs {
     #[must_use]
     pub fn is_morphing(&self) -> bool {
         !self.morphs.is_empty() || self.pending.iter().any(Option::is_some)
-    }
-
-    /// Triangles region `region` shows and counts now: its old count while a coarsening
-    /// morphs.
-    ///
-    /// # Panics
-    /// When `region` is out of range.
-    #[must_use]
-    pub fn triangle_count(&self, caches: &RegionCaches, region: usize) -> usize {
-        caches.triangle_count(region)
     }
 
     /// Asks region `region` for the finest level with at most `triangles` triangles at time
@@ -379,11 +356,7 @@ impl Geomorphs {
             for step in shown..p.level {
                 for &q in &self.tables.removed_at[region][step] {
                     self.morphs.remove(&q);
-                    let (a, b) = (
-                        self.tables.copies_start[q as usize],
-                        self.tables.copies_start[q as usize + 1],
-                    );
-                    for &g in &self.tables.copies[a as usize..b as usize] {
+                    for &g in self.tables.copies.get(q as usize) {
                         self.normal_morphs.remove(&g);
                     }
                 }
@@ -501,20 +474,14 @@ impl Geomorphs {
     }
 
     /// Writes the normal each of region `region`'s local vertices is shown with at `now`
-    /// into `out`; `false` (and `out` empty) when the mesh has no normals.
+    /// into `out` (left empty when the mesh has no normals).
     ///
     /// # Panics
     /// When `region` is out of range or `mesh` is not this instance's mesh.
-    pub fn write_normals(
-        &self,
-        mesh: &RegionMesh,
-        region: usize,
-        now: f32,
-        out: &mut Vec<Vec3>,
-    ) -> bool {
+    pub fn write_normals(&self, mesh: &RegionMesh, region: usize, now: f32, out: &mut Vec<Vec3>) {
         out.clear();
         if self.tables.normals.is_none() {
-            return false;
+            return;
         }
         out.extend(
             mesh.regions()[region]
@@ -522,7 +489,6 @@ impl Geomorphs {
                 .iter()
                 .map(|&g| self.normal(g, now).unwrap_or(Vec3::Y)),
         );
-        true
     }
 
     /// Where position `p` is shown at `now`, following a vanishing position's
@@ -545,11 +511,7 @@ impl Geomorphs {
 
     /// The source vertices at position `p`.
     fn copies_of(&self, p: u32) -> &[u32] {
-        let (a, b) = (
-            self.tables.copies_start[p as usize],
-            self.tables.copies_start[p as usize + 1],
-        );
-        &self.tables.copies[a as usize..b as usize]
+        self.tables.copies.get(p as usize)
     }
 
     /// Starts position `p` toward `toward` from where it is shown now (nothing when it is
@@ -581,27 +543,26 @@ impl Geomorphs {
     }
 
     /// The position that stands for position `p` at `level` of its region.
-    fn representative(&self, mut p: u32, level: usize) -> u32 {
-        // Each move is to a later step's position, so the chain ends; the bound guards a
-        // damaged file's regions.
-        for _ in 0..self.tables.parent.len() {
-            match self.tables.parent.get(p as usize) {
-                Some(&(step, to)) if step != u32::MAX && (step as usize) < level => p = to,
-                _ => break,
-            }
-        }
-        p
+    fn representative(&self, p: u32, level: usize) -> u32 {
+        follow(&self.tables.parent, p, level)
     }
 
     /// The vertex whose attributes stand for vertex `g` at `level` (as far as its recorded
     /// moves go: a copy no triangle uses any more moves no further).
-    fn vertex_representative(&self, mut g: u32, level: usize) -> u32 {
-        for _ in 0..self.tables.vertex_parent.len() {
-            match self.tables.vertex_parent.get(g as usize) {
-                Some(&(step, to)) if step != u32::MAX && (step as usize) < level => g = to,
-                _ => break,
-            }
-        }
-        g
+    fn vertex_representative(&self, g: u32, level: usize) -> u32 {
+        follow(&self.tables.vertex_parent, g, level)
     }
+}
+
+/// Follows `moves` (per item: the step that moves it, `u32::MAX` for none, and where to)
+/// from `start` while the move's step is below `level`. Each move goes to a later step's
+/// item, so the chain ends; the bound guards a damaged file's regions.
+fn follow(moves: &[(u32, u32)], mut at: u32, level: usize) -> u32 {
+    for _ in 0..moves.len() {
+        match moves.get(at as usize) {
+            Some(&(step, to)) if step != u32::MAX && (step as usize) < level => at = to,
+            _ => break,
+        }
+    }
+    at
 }

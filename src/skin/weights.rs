@@ -251,19 +251,21 @@ fn two_bones(a: u16, b: u16, s: f32) -> ([u16; 4], [f32; 4]) {
 }
 
 /// Vertex ids grouped by a dense key (compressed rows).
-struct Buckets {
+#[derive(Debug)]
+pub(crate) struct Buckets {
     start: Vec<u32>,
     items: Vec<u32>,
 }
 
 impl Buckets {
-    fn get(&self, k: usize) -> &[u32] {
+    /// The ids with key `k`.
+    pub(crate) fn get(&self, k: usize) -> &[u32] {
         &self.items[self.start[k] as usize..self.start[k + 1] as usize]
     }
 }
 
 /// Groups `0..keys.len()` by `keys[i] < count`.
-fn buckets(keys: &[u32], count: usize) -> Buckets {
+pub(crate) fn buckets(keys: &[u32], count: usize) -> Buckets {
     let mut start = vec![0u32; count + 1];
     for &k in keys {
         start[k as usize + 1] += 1;
