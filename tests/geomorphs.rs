@@ -7,7 +7,7 @@ mod common;
 
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};
 use bevy_aslod::multires::BuildOptions;
-use bevy_aslod::regions::{Geomorphs, Partition, RegionCaches, RegionMesh};
+use bevy_aslod::regions::{Geomorphs, Partition, RegionCaches, RegionMesh, VertexMorph};
 use common::{
     Rng, assert_closed, border_edges, grid, sphere, testdata_mesh, welded_directed_edges,
 };
@@ -69,6 +69,25 @@ fn assert_crack_free(
             );
         }
     }
+}
+
+/// The triangles shown at `now` as position triples (exact bits, each rotated to start at
+/// its least), without the flat ones: the surface, whichever vertices make it.
+fn triangles_shown(morphs: &Geomorphs, indices: &[u32], now: f32) -> Vec<[[u32; 3]; 3]> {
+    let mut out: Vec<[[u32; 3]; 3]> = indices
+        .chunks_exact(3)
+        .filter_map(|t| {
+            let p =
+                [t[0], t[1], t[2]].map(|g| morphs.position(g, now).to_array().map(f32::to_bits));
+            if p[0] == p[1] || p[1] == p[2] || p[2] == p[0] {
+                return None;
+            }
+            let first = (0..3).min_by_key(|&i| p[i]).unwrap_or(0);
+            Some([p[first], p[(first + 1) % 3], p[(first + 2) % 3]])
+        })
+        .collect();
+    out.sort_unstable();
+    out
 }
 
 fn shown(morphs: &Geomorphs, indices: &[u32], now: f32) -> Vec<(u32, Vec3)> {
@@ -140,10 +159,18 @@ fn random_level_changes_stay_crack_free_and_never_jump() {
                 let at = now + rng.unit() * T;
                 let mut c = caches.clone();
                 let mut m = morphs.clone();
+                let landing = triangles_shown(&m, &assemble(&rm, &mut c), at);
                 m.update(&rm, &mut c, at);
                 let indices = assemble(&rm, &mut c);
                 let context = format!("{name}, request {request}");
                 assert_crack_free(&mesh, &m, &indices, at, closed, &context);
+                // A coarsening that lands swaps triangles whose vertices have arrived for
+
+                let landed = triangles_shown(&m, &indices, at);
+                assert!(
+                    !closed || landed == landing,
+                    "{context}: the surface changed as a coarsening landed"
+                );
             }
         }
         // At the end, every vertex shown is at its own position, and the levels are the last
@@ -284,5 +311,74 @@ fn an_allocation_under_geomorphs_never_shows_more_than_the_budget() {
             caches.total_triangles() <= budget,
             "frame {frame} after update"
         );
+    }
+}
+
+/// What a vertex shader shows from a copy of [`Geomorphs::vertex_morph`] per region vertex,
+/// taken again only where [`Geomorphs::take_restarted`] says, is what the CPU shows.
+#[test]
+fn a_gpu_copy_taken_at_restarts_shows_what_the_cpu_does() {
+    let mesh = testdata_mesh("cow.obj");
+    let rm = regions(&mesh, 8);
+    let mut caches = RegionCaches::new(&rm);
+    let mut morphs = Geomorphs::new(&rm, T);
+    let mut gpu: Vec<Vec<VertexMorph>> = rm
+        .regions()
+        .iter()
+        .map(|r| {
+            r.global_vertices()
+                .iter()
+                .map(|&g| morphs.vertex_morph(g))
+                .collect()
+        })
+        .collect();
+    let mut rng = Rng(11);
+    let mut now = 0.0f32;
+    for request in 0..80 {
+        now += rng.unit() * 0.3;
+        let r = (rng.next() % rm.regions().len() as u64) as usize;
+        let count = (rng.unit() * rm.regions()[r].max_triangles() as f32) as usize;
+        morphs.set_triangle_count(&rm, &mut caches, r, count, now);
+        morphs.update(&rm, &mut caches, now);
+        for (r, run) in morphs.take_restarted(&rm).into_iter().enumerate() {
+            if let Some((lo, hi)) = run {
+                let global = rm.regions()[r].global_vertices();
+                for i in lo..=hi {
+                    gpu[r][i as usize] = morphs.vertex_morph(global[i as usize]);
+                }
+            }
+        }
+        for _ in 0..3 {
+            let at = now + rng.unit() * 0.3;
+            let mut c = caches.clone();
+            let mut m = morphs.clone();
+            m.update(&rm, &mut c, at);
+            for (r, copy) in gpu.iter().enumerate() {
+                let mut part = Vec::new();
+                c.write_indices(&rm, r, &mut part);
+                let global = rm.regions()[r].global_vertices();
+                for &i in &part {
+                    let (v, g) = (copy[i as usize], global[i as usize]);
+                    let t = ((at - v.start) / T).clamp(0.0, 1.0);
+                    let p = if t >= 1.0 {
+                        v.to
+                    } else {
+                        v.from + (v.to - v.from) * t
+                    };
+                    assert_eq!(
+                        p,
+                        m.position(g, at),
+                        "request {request}: vertex {g} in region {r}: {v:?} at {at}, t {t}, cpu {:?}",
+                        m.vertex_morph(g)
+                    );
+                    let n = v.normal_from.lerp(v.normal_to, t).normalize_or(v.normal_to);
+                    let cpu = m.normal(g, at).unwrap_or(Vec3::ZERO);
+                    assert!(
+                        n.distance(cpu) < 1e-5,
+                        "request {request}: vertex {g}'s normal {n} against {cpu}"
+                    );
+                }
+            }
+        }
     }
 }

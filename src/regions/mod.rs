@@ -63,7 +63,7 @@ mod partition;
 mod util;
 
 pub use cache::RegionCaches;
-pub use morph::Geomorphs;
+pub use morph::{Geomorphs, VertexMorph};
 pub use partition::{GridPlane, Partition};
 pub(crate) use util::subset;
 

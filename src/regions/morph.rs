@@ -16,20 +16,41 @@ enum Toward {
     Position(u32),
 }
 
-/// One position in motion: from where it was shown when the morph started.
+/// One position in motion: from where it was shown when the morph started to where it
+/// rests at the end (its own place, or its representative's), in a straight line. Both ends
+/// are fixed when the morph starts, so a GPU can interpolate it from two positions and a
+/// start time ([`VertexMorph`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Morph {
     from: Vec3,
+    to: Vec3,
     start: f32,
     toward: Toward,
 }
 
 /// The normal of one vertex in motion (seam copies have normals of their own): from the one
-/// it was shown with, toward its own (`None`) or a representative vertex's.
+/// it was shown with to its own or its representative vertex's, over its position's morph.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct NormalMorph {
     from: Vec3,
-    toward: Option<u32>,
+    to: Vec3,
+}
+
+/// One vertex's morph as a vertex shader interpolates it: shown at `from + (to - from) * t`
+/// with `t = ((now - start) / duration).clamp(0, 1)` (`to` itself at `t = 1`), its normal at
+/// `normal_from.lerp(normal_to, t)`, normalised. A vertex at rest has `from == to`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VertexMorph {
+    /// Where the vertex was shown when its morph started.
+    pub from: Vec3,
+    /// Where it rests when the morph ends.
+    pub to: Vec3,
+    /// Its normal when the morph started (zero when the mesh has none).
+    pub normal_from: Vec3,
+    /// Its normal at the end (zero when the mesh has none).
+    pub normal_to: Vec3,
+    /// When the morph started, on the clock of the `now` arguments.
+    pub start: f32,
 }
 
 /// A coarsening waiting for its vertices to arrive: the level, and when.
@@ -102,6 +123,10 @@ pub struct Geomorphs {
     pending: Vec<Option<Pending>>,
     /// Per region: positions of its own in motion, as of the last [`update`](Self::update).
     moving: Vec<usize>,
+    /// Positions whose morph started since the last
+    /// [`take_restarted`](Self::take_restarted), each once (`marked`).
+    restarted: Vec<u32>,
+    marked: Vec<bool>,
 }
 
 /// A [`RegionMesh`]'s morph tables (made once per mesh, on the first [`Geomorphs`]).
@@ -143,6 +168,8 @@ impl Geomorphs {
             normal_morphs: HashMap::new(),
             pending: vec![None; regions],
             moving: vec![0; regions],
+            restarted: Vec::new(),
+            marked: Vec::new(),
         }
     }
 }
@@ -245,24 +272,29 @@ impl Geomorphs {
                 for i in 0..self.tables.removed_at[region][step].len() {
                     let p = self.tables.removed_at[region][step][i];
                     let from = self.representative(p, shown);
-                    let normals: Vec<(u32, Vec3)> = self
+                    let normals: Vec<(u32, NormalMorph)> = self
                         .copies_of(p)
                         .iter()
                         .map(|&g| {
                             let rep = self.vertex_representative(g, shown);
-                            (g, self.normal(rep, now).unwrap_or(Vec3::ZERO))
+                            let from = self.normal(rep, now).unwrap_or(Vec3::ZERO);
+                            (
+                                g,
+                                NormalMorph {
+                                    from,
+                                    to: self.own_normal(g),
+                                },
+                            )
                         })
                         .collect();
                     let morph = Morph {
-                        from: self.shown_position(from, now, 0),
+                        from: self.position_of_p(from, now),
+                        to: self.tables.positions[p as usize],
                         start: now,
                         toward: Toward::Own,
                     };
-                    self.morphs.insert(p, morph);
-                    for (g, from) in normals {
-                        self.normal_morphs
-                            .insert(g, NormalMorph { from, toward: None });
-                    }
+                    self.start(p, morph);
+                    self.normal_morphs.extend(normals);
                 }
             }
             caches.set_triangle_count(mesh, region, goal_count)
@@ -397,7 +429,7 @@ impl Geomorphs {
     /// When `g` is not a vertex of the mesh.
     #[must_use]
     pub fn position(&self, g: u32, now: f32) -> Vec3 {
-        self.shown_position(self.tables.position_of[g as usize], now, 0)
+        self.position_of_p(self.tables.position_of[g as usize], now)
     }
 
     /// The normal source vertex `g` is shown with at `now` (interpolated and normalised),
@@ -407,28 +439,78 @@ impl Geomorphs {
     /// When `g` is not a vertex of the mesh.
     #[must_use]
     pub fn normal(&self, g: u32, now: f32) -> Option<Vec3> {
-        self.shown_normal(g, now, 0)
-    }
-
-    fn shown_normal(&self, g: u32, now: f32, depth: usize) -> Option<Vec3> {
-        let normals = self.tables.normals.as_ref()?;
-        let own = normals[g as usize];
+        let own = self.tables.normals.as_ref()?[g as usize];
         let p = self.tables.position_of[g as usize];
         let (Some(m), Some(nm)) = (self.morphs.get(&p), self.normal_morphs.get(&g)) else {
             return Some(own);
         };
-        if depth >= 64 {
-            return Some(own);
-        }
-        let target = match nm.toward {
-            Some(to) => self.shown_normal(to, now, depth + 1).unwrap_or(own),
-            None => own,
-        };
         let t = self.progress(m, now);
         if t >= 1.0 {
-            return Some(target);
+            return Some(nm.to);
         }
-        Some(nm.from.lerp(target, t).normalize_or(target))
+        Some(nm.from.lerp(nm.to, t).normalize_or(nm.to))
+    }
+
+    /// Source vertex `g`'s morph as a vertex shader interpolates it (the same positions and
+    /// normals as [`position`](Self::position) and [`normal`](Self::normal) at any time up
+    /// to the next level change).
+    ///
+    /// # Panics
+    /// When `g` is not a vertex of the mesh.
+    #[must_use]
+    pub fn vertex_morph(&self, g: u32) -> VertexMorph {
+        let p = self.tables.position_of[g as usize];
+        let own = self.tables.positions[p as usize];
+        let own_normal = self.own_normal(g);
+        let m = self.morphs.get(&p);
+        let nm = m.and(self.normal_morphs.get(&g));
+        VertexMorph {
+            from: m.map_or(own, |m| m.from),
+            to: m.map_or(own, |m| m.to),
+            normal_from: nm.map_or(own_normal, |n| n.from),
+            normal_to: nm.map_or(own_normal, |n| n.to),
+            start: m.map_or(0.0, |m| m.start),
+        }
+    }
+
+    /// Per region, the run of its local vertices (first and last) that a morph started or
+    /// restarted on since the last call: what a GPU copy of [`vertex_morph`](Self::vertex_morph)
+    /// must take again. `None` for a region with none.
+    ///
+    /// # Panics
+    /// When `mesh` is not this instance's mesh.
+    pub fn take_restarted(&mut self, mesh: &RegionMesh) -> Vec<Option<(u32, u32)>> {
+        let mut runs = vec![None; mesh.regions().len()];
+        if self.restarted.is_empty() {
+            return runs;
+        }
+        // Positions live in their owner's region and in the neighbours' that draw them.
+        let region_of = mesh.partition().region_of();
+        let mut touched = vec![false; runs.len()];
+        for &p in &self.restarted {
+            let owner = region_of[p as usize] as usize;
+            touched[owner] = true;
+            for &n in &mesh.regions()[owner].neighbors {
+                touched[n as usize] = true;
+            }
+        }
+        for (r, run) in runs.iter_mut().enumerate() {
+            if !touched[r] {
+                continue;
+            }
+            let global = &mesh.regions()[r].global;
+            let marked = |&g: &u32| self.marked[self.tables.position_of[g as usize] as usize];
+            if let (Some(lo), Some(hi)) = (
+                global.iter().position(marked),
+                global.iter().rposition(marked),
+            ) {
+                *run = Some((lo as u32, hi as u32));
+            }
+        }
+        for p in self.restarted.drain(..) {
+            self.marked[p as usize] = false;
+        }
+        runs
     }
 
     /// Whether region `region` is coarsening: it shows its old triangles until its vertices
@@ -491,22 +573,35 @@ impl Geomorphs {
         );
     }
 
-    /// Where position `p` is shown at `now`, following a vanishing position's
-    /// representative while it moves.
-    fn shown_position(&self, p: u32, now: f32, depth: usize) -> Vec3 {
-        let own = self.tables.positions[p as usize];
-        let Some(m) = self.morphs.get(&p).filter(|_| depth < 64) else {
-            return own;
-        };
-        let target = match m.toward {
-            Toward::Own => own,
-            Toward::Position(q) => self.shown_position(q, now, depth + 1),
+    /// Where position `p` is shown at `now`.
+    fn position_of_p(&self, p: u32, now: f32) -> Vec3 {
+        let Some(m) = self.morphs.get(&p) else {
+            return self.tables.positions[p as usize];
         };
         let t = self.progress(m, now);
         if t >= 1.0 {
-            return target;
+            return m.to;
         }
-        m.from.lerp(target, t)
+        m.from + (m.to - m.from) * t
+    }
+
+    /// Vertex `g`'s own normal (zero when the mesh has none).
+    fn own_normal(&self, g: u32) -> Vec3 {
+        self.tables
+            .normals
+            .as_ref()
+            .map_or(Vec3::ZERO, |n| n[g as usize])
+    }
+
+    /// Puts morph `m` on position `p`, noted for [`take_restarted`](Self::take_restarted).
+    fn start(&mut self, p: u32, m: Morph) {
+        self.morphs.insert(p, m);
+        if self.marked.is_empty() {
+            self.marked = vec![false; self.tables.positions.len()];
+        }
+        if !std::mem::replace(&mut self.marked[p as usize], true) {
+            self.restarted.push(p);
+        }
     }
 
     /// The source vertices at position `p`.
@@ -526,19 +621,26 @@ impl Geomorphs {
             .iter()
             .map(|&g| {
                 let to = match toward {
-                    Toward::Own => None,
-                    Toward::Position(_) => Some(self.vertex_representative(g, level)),
+                    Toward::Own => self.own_normal(g),
+                    Toward::Position(_) => self.own_normal(self.vertex_representative(g, level)),
                 };
                 let from = self.normal(g, now).unwrap_or(Vec3::ZERO);
-                (g, NormalMorph { from, toward: to })
+                (g, NormalMorph { from, to })
             })
             .collect();
+        // A representative is present at the level this morph heads for, and every vertex
+        // present there rests at its own place: the end is fixed now.
+        let to = match toward {
+            Toward::Own => self.tables.positions[p as usize],
+            Toward::Position(q) => self.tables.positions[q as usize],
+        };
         let morph = Morph {
-            from: self.shown_position(p, now, 0),
+            from: self.position_of_p(p, now),
+            to,
             start: now,
             toward,
         };
-        self.morphs.insert(p, morph);
+        self.start(p, morph);
         self.normal_morphs.extend(normals);
     }
 
