@@ -44,8 +44,9 @@ pub mod prelude {
     #[cfg(feature = "bevy")]
     pub use crate::plugin::{
         AslodOverlay, AslodPlugin, AslodStats, AslodSystems, AslodViewport, CountInBudget,
-        FullDetail, Geomorph, LodPriority, LodRegion, MultiresError, MultiresInstance,
-        MultiresMaterialPlugin, MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels,
-        MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera, RegionUpload, ViewDependent,
+        FullDetail, Geomorph, GeomorphMaterial, GpuGeomorph, LodPriority, LodRegion, MultiresError,
+        MultiresInstance, MultiresMaterialPlugin, MultiresMesh, MultiresModel, MultiresScene,
+        MultiresSceneModels, MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera,
+        RegionUpload, ViewDependent,
     };
 }

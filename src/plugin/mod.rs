@@ -54,6 +54,7 @@
 //! ```
 
 mod asset;
+mod geomorph;
 mod loader;
 mod overlay;
 mod refine;
@@ -64,6 +65,10 @@ mod systems;
 mod tasks;
 
 pub use asset::{MultiresError, MultiresMesh, PartitionSpec};
+pub use geomorph::{
+    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, GeomorphExtension, GeomorphMaterial,
+    GeomorphMaterialPlugin, GpuGeomorph,
+};
 pub use loader::{MrmLoadError, MrmLoader};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
 pub use refine::{RefineCamera, Refinement, VariableLevel, ViewDependent};
@@ -155,8 +160,14 @@ impl Plugin for AslodPlugin {
             .add_observer(systems::remove_region_meshes);
         diagnostics::register(app);
         systems::configure(app);
+        geomorph::embed_shaders(app);
         if !app.is_plugin_added::<MultiresMaterialPlugin<StandardMaterial>>() {
             app.add_plugins(MultiresMaterialPlugin::<StandardMaterial>::default());
+        }
+        if app.is_plugin_added::<bevy::pbr::PbrPlugin>()
+            && !app.is_plugin_added::<GeomorphMaterialPlugin<StandardMaterial>>()
+        {
+            app.add_plugins(GeomorphMaterialPlugin::<StandardMaterial>::default());
         }
     }
 
@@ -315,9 +326,13 @@ pub struct MultiresModel(pub Handle<MultiresMesh>);
 /// the same way in every region that draws it. `0` (or no component) changes levels at
 /// once.
 ///
+/// With a [`GeomorphMaterial`] (or another material with [`GpuGeomorph`]) the vertex
+/// shaders interpolate the morphs: a vertex is written once when a morph starts on it. With
+/// any other material the moving regions' positions and normals are written from the CPU
+/// each frame they move.
+///
 /// **Partial:** unskinned, region models only (skinned and [`ViewDependent`] models change
-/// levels at once), and the moving regions' positions and normals are written from the CPU
-/// each frame they move (a vertex upload per moving region), not interpolated on the GPU.
+/// levels at once).
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq)]
 #[reflect(Component)]
 pub struct Geomorph(pub f32);
@@ -379,11 +394,21 @@ pub struct MultiresInstance {
 #[derive(Debug)]
 struct MorphState {
     morphs: crate::regions::Geomorphs,
-    /// Per region: its vertices moved last frame (so it is written once more at rest).
+    /// The material interpolates on the GPU ([`GpuGeomorph`]): a vertex is written when a
+    /// morph starts on it, with the morph attributes.
+    gpu: bool,
+    /// The region meshes have the morph attributes (added once, by `Upload`).
+    attributes: bool,
+    /// Per region: its vertices moved last frame (so it is written once more at rest), or
+    /// (on the GPU) must all be written again.
     moved: Vec<bool>,
-    /// Per region: positions and normals to write into its mesh (`ready` when new).
+    /// Per region: a run of vertices to write into its mesh from vertex `first` (`ready`
+    /// when new): positions and normals, and on the GPU the morph attributes.
+    first: Vec<u32>,
     positions: Vec<Vec<glam::Vec3>>,
     normals: Vec<Vec<glam::Vec3>>,
+    from: Vec<Vec<[f32; 4]>>,
+    normal_from: Vec<Vec<[f32; 4]>>,
     ready: Vec<bool>,
 }
 

@@ -5,9 +5,9 @@ use super::render::{self, RegionUpload, RenderWrites};
 use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
 use super::tasks::{ComputePool, par_chunks};
 use super::{
-    AslodStats, AslodSystems, AslodViewport, CountInBudget, FullDetail, Geomorph, InputRun,
-    LodPriority, LodRegion, MorphState, MultiresInstance, MultiresMesh, MultiresModel,
-    PolygonBudget, StagedIndices, diagnostics,
+    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, AslodStats, AslodSystems, AslodViewport,
+    CountInBudget, FullDetail, Geomorph, GpuGeomorph, InputRun, LodPriority, LodRegion, MorphState,
+    MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, StagedIndices, diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
 use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
@@ -826,7 +826,7 @@ fn region_inputs(
 /// (copying them is the costly part of an update), for `Upload` to swap in;
 /// skinned models write theirs in `Deform`.
 fn select_lod(
-    mut models: Query<(&mut MultiresInstance, Option<&Geomorph>)>,
+    mut models: Query<(&mut MultiresInstance, Option<&Geomorph>, Has<GpuGeomorph>)>,
     scratch: Res<AslodScratch>,
     time: Res<Time>,
     mut stats: ResMut<AslodStats>,
@@ -834,12 +834,17 @@ fn select_lod(
 ) {
     let start = Instant::now();
     let now = time.elapsed_secs();
+    // The shaders' clock (`globals.time`) is the same time, wrapped.
+    let clock = Clock {
+        now,
+        shader: time.elapsed_secs_wrapped(),
+    };
     let mut instances: Vec<Mut<MultiresInstance>> = models
         .iter_mut()
-        .map(|(mut instance, morph)| {
+        .map(|(mut instance, morph, gpu)| {
             let seconds = morph.map_or(0.0, |m| m.0);
             if seconds > 0.0 || instance.morph.is_some() {
-                sync_geomorph(&mut instance, seconds);
+                sync_geomorph(&mut instance, seconds, gpu);
             }
             instance
         })
@@ -893,7 +898,7 @@ fn select_lod(
                 let m = &mut morph.morphs;
                 m.apply_allocation(regions, caches, &instance.targets, budget as usize, now);
                 m.update(regions, caches, now);
-                morph.stage(regions, now);
+                morph.stage(regions, clock);
                 caches.total_triangles() as u64
             } else {
                 let mut shown = 0;
@@ -940,23 +945,30 @@ fn select_lod(
 }
 
 /// Starts or ends an unskinned region model's geomorphs as its [`Geomorph`] says (ending
-/// them puts every vertex back at its own place at the next `Upload`).
-fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32) {
+/// them puts every vertex back at its own place at the next `Upload`), on the GPU when its
+/// material interpolates them.
+fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32, gpu: bool) {
     let wanted = seconds > 0.0 && instance.skin.is_none() && instance.fine.is_none();
     match (&mut instance.morph, wanted) {
         (None, true) => {
             let n = instance.regions.regions().len();
             instance.morph = Some(MorphState {
                 morphs: crate::regions::Geomorphs::new(&instance.regions, seconds),
-                moved: vec![false; n],
+                gpu,
+                attributes: false,
+                moved: vec![gpu; n],
+                first: vec![0; n],
                 positions: vec![Vec::new(); n],
                 normals: vec![Vec::new(); n],
+                from: vec![Vec::new(); n],
+                normal_from: vec![Vec::new(); n],
                 ready: vec![false; n],
             });
             instance.settled = false;
         }
-        (Some(m), true) if m.morphs.duration() != seconds => {
+        (Some(m), true) if m.morphs.duration() != seconds || m.gpu != gpu => {
             m.morphs = crate::regions::Geomorphs::new(&instance.regions, seconds);
+            m.gpu = gpu;
             m.moved.fill(true);
             instance.settled = false;
         }
@@ -971,20 +983,70 @@ fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32) {
     }
 }
 
+/// The time of a frame: `Time`'s elapsed seconds, and the same wrapped as the shaders see it.
+#[derive(Clone, Copy, Debug)]
+struct Clock {
+    now: f32,
+    shader: f32,
+}
+
 impl MorphState {
-    /// Writes the positions and normals of every region whose vertices move now or moved
-    /// last frame, for `Upload`.
-    fn stage(&mut self, regions: &crate::regions::RegionMesh, now: f32) {
-        for r in 0..self.moved.len() {
-            let moving = self.morphs.is_region_moving(regions, r);
-            if moving || self.moved[r] {
-                self.morphs
-                    .write_positions(regions, r, now, &mut self.positions[r]);
-                self.morphs
-                    .write_normals(regions, r, now, &mut self.normals[r]);
-                self.ready[r] = true;
+    /// Stages the vertices to write for `Upload`. On the CPU: the positions and normals of
+    /// every region whose vertices move now or moved last frame. On the GPU: the run of each
+    /// region's vertices that a morph started on, with their morph attributes (the whole
+    /// region when it must be written again).
+    fn stage(&mut self, regions: &crate::regions::RegionMesh, clock: Clock) {
+        let now = clock.now;
+        if !self.gpu {
+            for r in 0..self.moved.len() {
+                let moving = self.morphs.is_region_moving(regions, r);
+                if moving || self.moved[r] {
+                    self.morphs
+                        .write_positions(regions, r, now, &mut self.positions[r]);
+                    self.morphs
+                        .write_normals(regions, r, now, &mut self.normals[r]);
+                    self.first[r] = 0;
+                    self.from[r].clear();
+                    self.normal_from[r].clear();
+                    self.ready[r] = true;
+                }
+                self.moved[r] = moving;
             }
-            self.moved[r] = moving;
+            return;
+        }
+        let duration = self.morphs.duration();
+        let inv = if duration > 0.0 {
+            duration.recip()
+        } else {
+            0.0
+        };
+        for (r, run) in self.morphs.take_restarted(regions).into_iter().enumerate() {
+            let global = regions.regions()[r].global_vertices();
+            let run = if std::mem::take(&mut self.moved[r]) {
+                Some((0, global.len().saturating_sub(1) as u32))
+            } else {
+                run
+            };
+            let Some((lo, hi)) = run.filter(|_| !global.is_empty()) else {
+                continue;
+            };
+            let (positions, normals) = (&mut self.positions[r], &mut self.normals[r]);
+            let (from, normal_from) = (&mut self.from[r], &mut self.normal_from[r]);
+            positions.clear();
+            normals.clear();
+            from.clear();
+            normal_from.clear();
+            for &g in &global[lo as usize..=hi as usize] {
+                let m = self.morphs.vertex_morph(g);
+                // The start on the shaders' clock: as long ago as on the CPU's.
+                let start = clock.shader - (now - m.start);
+                positions.push(m.to);
+                normals.push(m.normal_to);
+                from.push(m.from.extend(start).to_array());
+                normal_from.push(m.normal_from.extend(inv).to_array());
+            }
+            self.first[r] = lo;
+            self.ready[r] = true;
         }
     }
 }
@@ -1198,12 +1260,21 @@ fn upload_skinned(instance: &mut MultiresInstance, target: &mut UploadTarget) ->
     changed
 }
 
-/// Writes the positions and normals `SelectLod` staged for a [`Geomorph`] model's moving
-/// regions into their meshes.
+/// Writes the vertices `SelectLod` staged for a [`Geomorph`] model's regions into their
+/// meshes; on the GPU, first gives the meshes the morph attributes (a change Bevy uploads
+/// whole, once).
 fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
     let Some(morph) = &mut instance.morph else {
         return;
     };
+    if morph.gpu && !morph.attributes {
+        for &id in &instance.mesh_ids {
+            if let Some(mesh) = target.meshes.get_mut(id) {
+                add_morph_attributes(mesh.into_inner());
+            }
+        }
+        morph.attributes = true;
+    }
     for r in 0..morph.ready.len() {
         if !std::mem::take(&mut morph.ready[r]) {
             continue;
@@ -1214,30 +1285,68 @@ fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
         let Some(mesh) = target.mesh(id) else {
             continue;
         };
-        let n = morph.positions[r].len();
+        let (first, n) = (morph.first[r] as usize, morph.positions[r].len());
+        let mut written = true;
         for (attribute, values) in [
             (Mesh::ATTRIBUTE_POSITION, &morph.positions[r]),
             (Mesh::ATTRIBUTE_NORMAL, &morph.normals[r]),
         ] {
-            if values.is_empty() {
-                continue;
-            }
             if let Ok(Some(VertexAttributeValues::Float32x3(slots))) =
                 mesh.try_attribute_mut_option(attribute)
-                && slots.len() == values.len()
+                && let Some(slots) = slots.get_mut(first..first + values.len())
             {
                 for (slot, v) in slots.iter_mut().zip(values) {
                     *slot = v.to_array();
                 }
             }
         }
-        if n > 0 {
-            target.vertices_changed(id, &[0, n as u32 - 1], false);
+        for (attribute, values) in [
+            (ATTRIBUTE_MORPH_FROM, &morph.from[r]),
+            (ATTRIBUTE_MORPH_NORMAL_FROM, &morph.normal_from[r]),
+        ] {
+            let slots = match mesh.try_attribute_mut_option(attribute) {
+                Ok(Some(VertexAttributeValues::Float32x4(slots))) => slots,
+                _ => continue,
+            };
+            if values.is_empty() {
+                // Written from the CPU: the morph attributes say "at rest".
+                for (slot, p) in slots[first..].iter_mut().zip(&morph.positions[r]) {
+                    *slot = p.extend(0.0).to_array();
+                }
+            } else if let Some(slots) = slots.get_mut(first..first + values.len()) {
+                slots.copy_from_slice(values);
+            } else {
+                written = false;
+            }
+        }
+        if n > 0 && written {
+            target.vertices_changed(id, &[first as u32, (first + n) as u32 - 1], false);
         }
     }
     if morph.morphs.duration() == 0.0 && !morph.moved.contains(&true) {
         instance.morph = None;
     }
+}
+
+/// Gives a region mesh the morph attributes, every vertex at rest.
+fn add_morph_attributes(mesh: &mut Mesh) {
+    if mesh.contains_attribute(ATTRIBUTE_MORPH_FROM) {
+        return;
+    }
+    let Some(VertexAttributeValues::Float32x3(positions)) =
+        mesh.attribute(Mesh::ATTRIBUTE_POSITION)
+    else {
+        return;
+    };
+    let rest: Vec<[f32; 4]> = positions.iter().map(|&[x, y, z]| [x, y, z, 0.0]).collect();
+    let normals: Vec<[f32; 4]> = match mesh.attribute(Mesh::ATTRIBUTE_NORMAL) {
+        Some(VertexAttributeValues::Float32x3(n)) => {
+            n.iter().map(|&[x, y, z]| [x, y, z, 0.0]).collect()
+        }
+        _ => vec![[0.0; 4]; rest.len()],
+    };
+    mesh.insert_attribute(ATTRIBUTE_MORPH_FROM, rest);
+    mesh.insert_attribute(ATTRIBUTE_MORPH_NORMAL_FROM, normals);
 }
 
 /// `Upload`: swap in the index buffers `SelectLod` wrote for dirty regions, write what

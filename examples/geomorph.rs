@@ -1,0 +1,438 @@
+//! Geomorphs as the renderer draws them: a terrain under a budget that drops and comes back,
+//! seen by a still camera, so every change between two frames is a level change. Drawn three
+//! times (without geomorphs, with them written from the CPU, with `GeomorphMaterial`
+//! interpolating them in the vertex shaders), one image per frame.
+//!
+//! `cargo run --release --example geomorph -- --out DIR` writes `frames.json` (per frame, the
+//! share of pixels that changed since the previous frame, and how far the CPU and GPU runs
+//! are apart) and `geomorph-frames.png`, a plot of the first against the others. `--check`
+//! also fails when the GPU run does not draw what the CPU run does, or pops as much as the
+//! run without geomorphs (the render test runs it).
+
+#[path = "common/mod.rs"]
+mod common;
+
+use bevy::app::ScheduleRunnerPlugin;
+use bevy::camera::RenderTarget;
+use bevy::prelude::*;
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::time::TimeUpdateStrategy;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy_aslod::plugin::{
+    AslodPlugin, AslodStats, Geomorph, GeomorphMaterial, MultiresMesh, MultiresModel, PolygonBudget,
+};
+use bevy_aslod::regions::{GridPlane, Partition};
+use clap::Parser;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// The morph time.
+const T: f32 = 0.25;
+/// Frames per second of the scripted clock.
+const FPS: f64 = 60.0;
+/// Image size: small, so lavapipe draws a frame quickly.
+const SIZE: (u32, u32) = (320, 180);
+/// The budget before the drop, during it, and when it is back.
+const HIGH: u32 = 16_000;
+const LOW: u32 = 2_500;
+/// Frames drawn per run; the budget drops at `DROP` and comes back at `BACK`.
+const FRAMES: usize = 60;
+const DROP: usize = 5;
+const BACK: usize = 32;
+
+#[derive(Parser, Debug)]
+struct Args {
+    /// Where to write frames.json, the plot and (with `--frames`) every frame.
+    #[arg(long, default_value = "geomorph-out")]
+    out: PathBuf,
+    /// Fail unless the GPU run draws what the CPU run does and pops less than no geomorphs.
+    #[arg(long)]
+    check: bool,
+    /// Also save every frame as PNG.
+    #[arg(long)]
+    frames: bool,
+}
+
+/// How a run changes levels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    Off,
+    Cpu,
+    Gpu,
+}
+
+impl Mode {
+    fn name(self) -> &'static str {
+        match self {
+            Mode::Off => "no geomorphs",
+            Mode::Cpu => "geomorphs, CPU writes",
+            Mode::Gpu => "geomorphs, GPU (GeomorphMaterial)",
+        }
+    }
+
+    fn key(self) -> &'static str {
+        match self {
+            Mode::Off => "off",
+            Mode::Cpu => "cpu",
+            Mode::Gpu => "gpu",
+        }
+    }
+}
+
+fn main() {
+    let args = Args::parse();
+    if let Err(e) = run(&args) {
+        eprintln!("geomorph: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run(args: &Args) -> Result<(), String> {
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    let mut app = render_app();
+    let target = app
+        .world_mut()
+        .resource_mut::<Assets<Image>>()
+        .add(Image::new_target_texture(
+            SIZE.0,
+            SIZE.1,
+            TextureFormat::Rgba8Unorm,
+            Some(TextureFormat::Rgba8UnormSrgb),
+        ));
+    let mesh = common::terrain::terrain_middle(97);
+    let grid = Partition::grid(&mesh, GridPlane::XZ, 4, 4).map_err(|e| e.to_string())?;
+    let asset = MultiresMesh::from_indexed(&mesh, &grid).map_err(|e| e.to_string())?;
+    let world = app.world_mut();
+    let asset = world.resource_mut::<Assets<MultiresMesh>>().add(asset);
+    let base = StandardMaterial {
+        base_color: Color::srgb(0.6, 0.57, 0.5),
+        perceptual_roughness: 0.9,
+        ..default()
+    };
+    let standard = world
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(base.clone());
+    let morphing = world
+        .resource_mut::<Assets<GeomorphMaterial>>()
+        .add(GeomorphMaterial {
+            base,
+            extension: default(),
+        });
+    world.spawn((
+        DirectionalLight {
+            illuminance: 10_000.0,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(-1.0, 0.5, 0.3).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    world.spawn((
+        Camera3d::default(),
+        RenderTarget::Image(target.clone().into()),
+        Msaa::Off,
+        Transform::from_xyz(-30.0, 45.0, 70.0).looking_at(Vec3::new(0.0, 0.0, 5.0), Vec3::Y),
+    ));
+    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
+
+    let mut runs = Vec::new();
+    for mode in [Mode::Off, Mode::Cpu, Mode::Gpu] {
+        let start = Instant::now();
+        let world = app.world_mut();
+        world.resource_mut::<PolygonBudget>().total = HIGH;
+        let mut model = world.spawn((MultiresModel(asset.clone()), Transform::default()));
+        match mode {
+            Mode::Off => model.insert(MeshMaterial3d(standard.clone())),
+            Mode::Cpu => model.insert((MeshMaterial3d(standard.clone()), Geomorph(T))),
+            Mode::Gpu => model.insert((MeshMaterial3d(morphing.clone()), Geomorph(T))),
+        };
+        let model = model.id();
+        // Pipelines compile slowly on lavapipe: wait until the terrain is drawn and still.
+        let mut last = capture(&mut app, &target, &captured)?;
+        let mut still = 0;
+        for _ in 0..200 {
+            step(&mut app);
+            let shot = capture(&mut app, &target, &captured)?;
+            still = if varied(&shot) > 0.3 && difference(&shot, &last).0 == 0.0 {
+                still + 1
+            } else {
+                0
+            };
+            last = shot;
+            if still >= 3 {
+                break;
+            }
+        }
+        if still < 3 {
+            save(
+                &last,
+                &args.out.join(format!("{}-not-ready.png", mode.key())),
+            )?;
+            return Err(format!(
+                "{}: the terrain was not drawn, or kept changing",
+                mode.name()
+            ));
+        }
+        let mut frames = vec![last];
+        let mut triangles = Vec::new();
+        for frame in 1..=FRAMES {
+            let budget = if (DROP..BACK).contains(&frame) {
+                LOW
+            } else {
+                HIGH
+            };
+            app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+            step(&mut app);
+            triangles.push(app.world().resource::<AslodStats>().triangles);
+            frames.push(capture(&mut app, &target, &captured)?);
+        }
+        if args.frames {
+            for (i, f) in frames.iter().enumerate() {
+                save(f, &args.out.join(format!("{}-{i:03}.png", mode.key())))?;
+            }
+        }
+        eprintln!(
+            "{}: {} frames in {:.1} s",
+            mode.name(),
+            FRAMES,
+            start.elapsed().as_secs_f32()
+        );
+        app.world_mut().despawn(model);
+        runs.push((mode, frames, triangles));
+    }
+
+    // Per frame: the share of pixels that changed since the previous frame (by more than 2
+    // of 255 in a channel), and between the CPU and GPU runs.
+    let changed: Vec<Vec<f64>> = runs
+        .iter()
+        .map(|(_, frames, _)| {
+            frames
+                .windows(2)
+                .map(|w| difference(&w[0], &w[1]).0)
+                .collect()
+        })
+        .collect();
+    let apart: Vec<f64> = runs[1]
+        .1
+        .iter()
+        .zip(&runs[2].1)
+        .map(|(a, b)| difference(a, b).0)
+        .collect();
+    let summary = |c: &[f64]| {
+        let max = c.iter().copied().fold(0.0, f64::max);
+        let frames = c.iter().filter(|&&x| x > 0.0005).count();
+        (max, frames)
+    };
+    let json = serde_json::json!({
+        "size": [SIZE.0, SIZE.1],
+        "morph_seconds": T,
+        "fps": FPS,
+        "budget": { "high": HIGH, "low": LOW, "drop_frame": DROP, "back_frame": BACK },
+        "runs": runs.iter().zip(&changed).map(|((mode, _, triangles), c)| {
+            let (max, frames) = summary(c);
+            serde_json::json!({
+                "mode": mode.key(),
+                "changed": c,
+                "max_changed": max,
+                "frames_changing": frames,
+                "triangles": triangles,
+            })
+        }).collect::<Vec<_>>(),
+        "cpu_gpu_apart": apart,
+        "cpu_gpu_apart_max": apart.iter().copied().fold(0.0, f64::max),
+    });
+    std::fs::write(
+        args.out.join("frames.json"),
+        serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?,
+    )
+    .map_err(|e| format!("write frames.json: {e}"))?;
+    plot(&args.out.join("geomorph-frames.png"), &runs, &changed)?;
+    for ((mode, ..), c) in runs.iter().zip(&changed) {
+        let (max, frames) = summary(c);
+        println!(
+            "{:<36} largest change between frames {:>6.2} % of pixels, {frames} frames changing",
+            mode.name(),
+            max * 100.0
+        );
+    }
+    println!(
+        "CPU against GPU run: at most {:.3} % of pixels apart",
+        json["cpu_gpu_apart_max"].as_f64().unwrap_or(1.0) * 100.0
+    );
+    if args.check {
+        let (off, _) = summary(&changed[0]);
+        let (gpu, gpu_frames) = summary(&changed[2]);
+        let apart = json["cpu_gpu_apart_max"].as_f64().unwrap_or(1.0);
+        if apart > 0.01 {
+            return Err(format!(
+                "the GPU run draws {:.2} % of pixels unlike the CPU run",
+                apart * 100.0
+            ));
+        }
+        if gpu * 3.0 > off || gpu_frames < 10 {
+            return Err(format!(
+                "geomorphs on the GPU pop: {:.2} % of pixels at once against {:.2} % without, over {gpu_frames} frames",
+                gpu * 100.0,
+                off * 100.0
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A headless app whose frames are drawn in `update` (no pipelined rendering), on a clock
+/// of exactly 1/60 s per frame.
+fn render_app() -> App {
+    let mut app = App::new();
+    let plugins = DefaultPlugins
+        .set(WindowPlugin {
+            primary_window: None,
+            exit_condition: ExitCondition::DontExit,
+            ..default()
+        })
+        .disable::<WinitPlugin>()
+        .disable::<PipelinedRenderingPlugin>();
+    app.add_plugins((plugins, ScheduleRunnerPlugin::run_once()))
+        .add_plugins(AslodPlugin::default().with_budget(HIGH))
+        .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)))
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
+            1.0 / FPS,
+        )));
+    app.finish();
+    app.cleanup();
+    app
+}
+
+/// One frame on: the clock runs for it, then stops while screenshots are read back.
+fn step(app: &mut App) {
+    app.world_mut().resource_mut::<Time<Virtual>>().unpause();
+    app.update();
+    app.world_mut().resource_mut::<Time<Virtual>>().pause();
+}
+
+/// The frame as drawn now (the clock stands still until it arrives, so every frame drawn
+/// meanwhile is the same).
+fn capture(
+    app: &mut App,
+    target: &Handle<Image>,
+    slot: &Arc<Mutex<Option<Image>>>,
+) -> Result<Image, String> {
+    let pending = slot.clone();
+    app.world_mut()
+        .spawn(Screenshot::image(target.clone()))
+        .observe(move |captured: On<ScreenshotCaptured>| {
+            *pending.lock().expect("capture slot") = Some(captured.image.clone());
+        });
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(120) {
+        app.update();
+        if let Some(image) = slot.lock().expect("capture slot").take() {
+            return Ok(image);
+        }
+    }
+    Err("a screenshot did not arrive within two minutes".into())
+}
+
+/// The share of pixels that differ by more than 2 of 255 in a channel, and the largest
+/// channel difference.
+fn difference(a: &Image, b: &Image) -> (f64, u8) {
+    let (Some(a), Some(b)) = (&a.data, &b.data) else {
+        return (1.0, 255);
+    };
+    if a.len() != b.len() {
+        return (1.0, 255);
+    }
+    let (mut differing, mut max) = (0usize, 0u8);
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        let d = pa[..3]
+            .iter()
+            .zip(&pb[..3])
+            .map(|(x, y)| x.abs_diff(*y))
+            .max()
+            .unwrap_or(0);
+        max = max.max(d);
+        differing += usize::from(d > 2);
+    }
+    (differing as f64 / (a.len() / 4) as f64, max)
+}
+
+/// The share of pixels unlike the first (the clear colour until the terrain is drawn).
+fn varied(image: &Image) -> f64 {
+    let Some(data) = &image.data else { return 0.0 };
+    let first = &data[..4];
+    data.chunks_exact(4).filter(|p| p != &first).count() as f64 / (data.len() / 4) as f64
+}
+
+fn save(image: &Image, path: &Path) -> Result<(), String> {
+    image
+        .clone()
+        .try_into_dynamic()
+        .map_err(|e| e.to_string())?
+        .to_rgb8()
+        .save(path)
+        .map_err(|e| format!("save {}: {e}", path.display()))
+}
+
+/// Per run, the share of pixels changed between consecutive frames.
+fn plot(
+    path: &Path,
+    runs: &[(Mode, Vec<Image>, Vec<u64>)],
+    changed: &[Vec<f64>],
+) -> Result<(), String> {
+    use plotters::prelude::*;
+
+    let top = changed
+        .iter()
+        .flatten()
+        .copied()
+        .fold(0.0, f64::max)
+        .max(1e-3)
+        * 100.0
+        * 1.1;
+    common::chart::draw(path, |area| {
+        let mut chart = ChartBuilder::on(area)
+            .caption(
+                format!(
+                    "Pixels changed between consecutive frames (budget {HIGH} -> {LOW} at frame {DROP}, back at {BACK}; T = {T} s, 60 fps)"
+                ),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(56)
+            .build_cartesian_2d(0f64..FRAMES as f64, 0f64..top)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("frame")
+            .y_desc("% of pixels")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let colours = [
+            RGBColor(200, 40, 30),
+            RGBColor(60, 60, 200),
+            RGBColor(20, 140, 60),
+        ];
+        for (((mode, ..), c), colour) in runs.iter().zip(changed).zip(colours) {
+            let points: Vec<(f64, f64)> = c
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| ((i + 1) as f64, x * 100.0))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(points, colour.stroke_width(2)))
+                .map_err(|e| e.to_string())?
+                .label(mode.name())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())
+    })
+}

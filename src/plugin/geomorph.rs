@@ -1,0 +1,156 @@
+//! Geomorphs interpolated on the GPU: a material extension whose vertex shaders move each
+//! vertex from where its morph started to where it rests, by the render world's clock.
+//!
+//! A region mesh of a [`GpuGeomorph`] model carries two more vertex attributes,
+//! [`ATTRIBUTE_MORPH_FROM`] (the position a morph starts from, and its start time) and
+//! [`ATTRIBUTE_MORPH_NORMAL_FROM`] (the normal it starts with, and `1 / T`); its position
+//! and normal are the morph's ends. The plugin writes a vertex's four values once, when a
+//! morph starts on it, not each frame it moves.
+
+use super::MultiresModel;
+use bevy::asset::embedded_asset;
+use bevy::mesh::{MeshVertexAttribute, MeshVertexBufferLayoutRef};
+use bevy::pbr::{
+    ExtendedMaterial, MaterialExtension, MaterialExtensionKey, MaterialExtensionPipeline,
+    MaterialPlugin,
+};
+use bevy::prelude::*;
+use bevy::render::render_resource::{
+    AsBindGroup, RenderPipelineDescriptor, SpecializedMeshPipelineError, VertexFormat,
+};
+use bevy::shader::ShaderRef;
+
+/// Where a morphing vertex started (`xyz`, in the mesh's space) and when (`w`, seconds on
+/// the clock of Bevy's `Time`, wrapped as the shaders' `globals.time` is).
+pub const ATTRIBUTE_MORPH_FROM: MeshVertexAttribute =
+    MeshVertexAttribute::new("Aslod_MorphFrom", 0x0A51_0D01, VertexFormat::Float32x4);
+
+/// The normal a morphing vertex started with (`xyz`), and `1 / T` for its model's morph
+/// time `T` (`w`; `0`: at rest).
+pub const ATTRIBUTE_MORPH_NORMAL_FROM: MeshVertexAttribute = MeshVertexAttribute::new(
+    "Aslod_MorphNormalFrom",
+    0x0A51_0D02,
+    VertexFormat::Float32x4,
+);
+
+/// The material extension that interpolates geomorphs in the vertex shaders (main pass,
+/// prepass, shadows, deferred) of any base material drawn by Bevy's mesh pipeline, such as
+/// `StandardMaterial` ([`GeomorphMaterial`]). On meshes without the morph attributes it
+/// draws as the base material does.
+#[derive(Asset, AsBindGroup, Reflect, Clone, Copy, Debug, Default, PartialEq)]
+pub struct GeomorphExtension {}
+
+/// `StandardMaterial` with geomorphs on the GPU: give it to a [`MultiresModel`] with a
+/// [`Geomorph`](super::Geomorph) (the `base` is the `StandardMaterial` it would have had).
+pub type GeomorphMaterial = ExtendedMaterial<StandardMaterial, GeomorphExtension>;
+
+const SHADER: &str = "embedded://bevy_aslod/plugin/geomorph.wgsl";
+const PREPASS_SHADER: &str = "embedded://bevy_aslod/plugin/geomorph_prepass.wgsl";
+
+impl MaterialExtension for GeomorphExtension {
+    fn vertex_shader() -> ShaderRef {
+        SHADER.into()
+    }
+
+    fn prepass_vertex_shader() -> ShaderRef {
+        PREPASS_SHADER.into()
+    }
+
+    fn deferred_vertex_shader() -> ShaderRef {
+        PREPASS_SHADER.into()
+    }
+
+    fn specialize(
+        _pipeline: &MaterialExtensionPipeline,
+        descriptor: &mut RenderPipelineDescriptor,
+        layout: &MeshVertexBufferLayoutRef,
+        _key: MaterialExtensionKey<Self>,
+    ) -> Result<(), SpecializedMeshPipelineError> {
+        let mesh = &layout.0;
+        if !(mesh.contains(ATTRIBUTE_MORPH_FROM) && mesh.contains(ATTRIBUTE_MORPH_NORMAL_FROM)) {
+            return Ok(());
+        }
+        // Both passes read the morph at locations 8 and 9, after Bevy's own attributes.
+        let morph = mesh.get_layout(&[
+            ATTRIBUTE_MORPH_FROM.at_shader_location(8),
+            ATTRIBUTE_MORPH_NORMAL_FROM.at_shader_location(9),
+        ])?;
+        if let Some(buffer) = descriptor.vertex.buffers.first_mut() {
+            buffer.attributes.extend(morph.attributes);
+            descriptor.vertex.shader_defs.push("ASLOD_GEOMORPH".into());
+        }
+        Ok(())
+    }
+}
+
+/// Marks a [`MultiresModel`] whose material interpolates geomorphs on the GPU: its region
+/// meshes get the morph attributes, and a morph costs one write of its vertices when it
+/// starts. [`GeomorphMaterialPlugin`] keeps it on every model with its material; insert it
+/// yourself for a material of your own whose vertex shader reads the attributes as
+/// `geomorph.wgsl` does. Without it a [`Geomorph`](super::Geomorph) model's moving
+/// vertices are written from the CPU each frame.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component)]
+pub struct GpuGeomorph;
+
+/// Draws [`MultiresModel`]s with `ExtendedMaterial<B, GeomorphExtension>`: adds Bevy's
+/// `MaterialPlugin` for it (unless added already), a
+/// [`MultiresMaterialPlugin`](super::MultiresMaterialPlugin), and keeps [`GpuGeomorph`] on
+/// the models that have the material. [`AslodPlugin`](super::AslodPlugin) adds it for
+/// `StandardMaterial` when the app renders with Bevy's `PbrPlugin`.
+pub struct GeomorphMaterialPlugin<B: Material>(std::marker::PhantomData<fn() -> B>);
+
+impl<B: Material> Default for GeomorphMaterialPlugin<B> {
+    fn default() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+type M<B> = ExtendedMaterial<B, GeomorphExtension>;
+
+impl<B: Material> Plugin for GeomorphMaterialPlugin<B>
+where
+    MaterialPlugin<M<B>>: Plugin,
+{
+    fn build(&self, app: &mut App) {
+        if !app.is_plugin_added::<MaterialPlugin<M<B>>>() {
+            app.add_plugins(MaterialPlugin::<M<B>>::default());
+        }
+        if !app.is_plugin_added::<super::MultiresMaterialPlugin<M<B>>>() {
+            app.add_plugins(super::MultiresMaterialPlugin::<M<B>>::default());
+        }
+        app.register_type::<GpuGeomorph>().add_systems(
+            PostUpdate,
+            mark_gpu_models::<B>.in_set(super::AslodSystems::Spawn),
+        );
+    }
+}
+
+/// Embeds the shaders (once, whichever plugin comes first).
+pub(super) fn embed_shaders(app: &mut App) {
+    embedded_asset!(app, "geomorph.wgsl");
+    embedded_asset!(app, "geomorph_prepass.wgsl");
+}
+
+/// Keeps [`GpuGeomorph`] on the models that have the geomorph material `B`.
+fn mark_gpu_models<B: Material>(
+    mut commands: Commands,
+    added: Query<
+        Entity,
+        (
+            With<MultiresModel>,
+            Added<MeshMaterial3d<ExtendedMaterial<B, GeomorphExtension>>>,
+        ),
+    >,
+    mut removed: RemovedComponents<MeshMaterial3d<ExtendedMaterial<B, GeomorphExtension>>>,
+    models: Query<(), With<MultiresModel>>,
+) {
+    for entity in &added {
+        commands.entity(entity).insert(GpuGeomorph);
+    }
+    for entity in removed.read() {
+        if models.contains(entity) {
+            commands.entity(entity).remove::<GpuGeomorph>();
+        }
+    }
+}

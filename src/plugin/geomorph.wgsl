@@ -1,0 +1,130 @@
+// Bevy's mesh vertex shader (bevy_pbr 0.19 `mesh.wgsl`) with geomorphs: a vertex with the
+// morph attributes is drawn on its way from `morph_from.xyz` to its position, started at
+// `morph_from.w` seconds and taking `1 / morph_normal_from.w`, by `globals.time`.
+// Regions have no morph targets, so Bevy's morph-target path is left out.
+#import bevy_pbr::{
+    mesh_functions,
+    skinning,
+    forward_io::VertexOutput,
+    mesh_view_bindings::globals,
+    view_transformations::position_world_to_clip,
+}
+
+struct Vertex {
+    @builtin(instance_index) instance_index: u32,
+#ifdef VERTEX_POSITIONS
+    @location(0) position: vec3<f32>,
+#endif
+#ifdef VERTEX_NORMALS
+    @location(1) normal: vec3<f32>,
+#endif
+#ifdef VERTEX_UVS_A
+    @location(2) uv: vec2<f32>,
+#endif
+#ifdef VERTEX_UVS_B
+    @location(3) uv_b: vec2<f32>,
+#endif
+#ifdef VERTEX_TANGENTS
+    @location(4) tangent: vec4<f32>,
+#endif
+#ifdef VERTEX_COLORS
+    @location(5) color: vec4<f32>,
+#endif
+#ifdef SKINNED
+    @location(6) joint_indices: vec4<u32>,
+    @location(7) joint_weights: vec4<f32>,
+#endif
+#ifdef ASLOD_GEOMORPH
+    @location(8) morph_from: vec4<f32>,
+    @location(9) morph_normal_from: vec4<f32>,
+#endif
+};
+
+// How far a morph started at `start` and taking `1 / inv_duration` seconds has come. A
+// clock that wrapped since the start (Bevy wraps `globals.time` hourly) ends it.
+fn morph_progress(start: f32, inv_duration: f32) -> f32 {
+    let elapsed = globals.time - start;
+    if elapsed < 0.0 || inv_duration <= 0.0 {
+        return 1.0;
+    }
+    return clamp(elapsed * inv_duration, 0.0, 1.0);
+}
+
+@vertex
+fn vertex(vertex_in: Vertex) -> VertexOutput {
+    var out: VertexOutput;
+    var vertex = vertex_in;
+
+#ifdef ASLOD_GEOMORPH
+    let t = morph_progress(vertex.morph_from.w, vertex.morph_normal_from.w);
+    if t < 1.0 {
+#ifdef VERTEX_POSITIONS
+        vertex.position = vertex.morph_from.xyz + (vertex.position - vertex.morph_from.xyz) * t;
+#endif
+#ifdef VERTEX_NORMALS
+        let n = mix(vertex.morph_normal_from.xyz, vertex.normal, t);
+        if dot(n, n) > 1e-12 {
+            vertex.normal = normalize(n);
+        }
+#endif
+    }
+#endif
+
+    let mesh_world_from_local = mesh_functions::get_world_from_local(vertex_in.instance_index);
+
+#ifdef SKINNED
+    var world_from_local = skinning::skin_model(
+        vertex.joint_indices,
+        vertex.joint_weights,
+        vertex_in.instance_index
+    );
+#else
+    var world_from_local = mesh_world_from_local;
+#endif
+
+#ifdef VERTEX_NORMALS
+#ifdef SKINNED
+    out.world_normal = skinning::skin_normals(world_from_local, vertex.normal);
+#else
+    out.world_normal = mesh_functions::mesh_normal_local_to_world(
+        vertex.normal,
+        vertex_in.instance_index
+    );
+#endif
+#endif
+
+#ifdef VERTEX_POSITIONS
+    out.world_position = mesh_functions::mesh_position_local_to_world(world_from_local, vec4<f32>(vertex.position, 1.0));
+    out.position = position_world_to_clip(out.world_position.xyz);
+#endif
+
+#ifdef VERTEX_UVS_A
+    out.uv = vertex.uv;
+#endif
+#ifdef VERTEX_UVS_B
+    out.uv_b = vertex.uv_b;
+#endif
+
+#ifdef VERTEX_TANGENTS
+    out.world_tangent = mesh_functions::mesh_tangent_local_to_world(
+        world_from_local,
+        vertex.tangent,
+        vertex_in.instance_index
+    );
+#endif
+
+#ifdef VERTEX_COLORS
+    out.color = vertex.color;
+#endif
+
+#ifdef VERTEX_OUTPUT_INSTANCE_INDEX
+    out.instance_index = vertex_in.instance_index;
+#endif
+
+#ifdef VISIBILITY_RANGE_DITHER
+    out.visibility_range_dither = mesh_functions::get_visibility_range_dither_level(
+        vertex_in.instance_index, mesh_world_from_local[3]);
+#endif
+
+    return out;
+}
