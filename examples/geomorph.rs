@@ -40,9 +40,9 @@ const SIZE: (u32, u32) = (320, 180);
 const HIGH: u32 = 16_000;
 const LOW: u32 = 2_500;
 /// Frames drawn per run; the budget drops at `DROP` and comes back at `BACK`.
-const FRAMES: usize = 60;
-const DROP: usize = 5;
-const BACK: usize = 32;
+const FRAMES: usize = 48;
+const DROP: usize = 4;
+const BACK: usize = 24;
 
 #[derive(Parser, Debug)]
 struct Args {
@@ -70,7 +70,7 @@ impl Mode {
         match self {
             Mode::Off => "no geomorphs",
             Mode::Cpu => "geomorphs, CPU writes",
-            Mode::Gpu => "geomorphs, GPU (GeomorphMaterial)",
+            Mode::Gpu => "geomorphs, GPU (GeomorphMaterial; on the CPU line)",
         }
     }
 
@@ -201,7 +201,7 @@ fn run(args: &Args) -> Result<(), String> {
             start.elapsed().as_secs_f32()
         );
         app.world_mut().despawn(model);
-        runs.push((mode, frames, triangles));
+        runs.push((mode, frames, cost));
     }
 
     // Per frame: the share of pixels that changed since the previous frame (by more than 2
@@ -231,14 +231,18 @@ fn run(args: &Args) -> Result<(), String> {
         "morph_seconds": T,
         "fps": FPS,
         "budget": { "high": HIGH, "low": LOW, "drop_frame": DROP, "back_frame": BACK },
-        "runs": runs.iter().zip(&changed).map(|((mode, _, triangles), c)| {
+        "runs": runs.iter().zip(&changed).map(|((mode, _, cost), c)| {
             let (max, frames) = summary(c);
             serde_json::json!({
                 "mode": mode.key(),
                 "changed": c,
                 "max_changed": max,
                 "frames_changing": frames,
-                "triangles": triangles,
+                "triangles": cost.triangles,
+                "update_ms": cost.update_ms,
+                "write_ms": cost.write_ms,
+                "vertex_bytes": cost.vertex_bytes,
+                "index_bytes": cost.index_bytes,
             })
         }).collect::<Vec<_>>(),
         "cpu_gpu_apart": apart,
@@ -250,14 +254,28 @@ fn run(args: &Args) -> Result<(), String> {
     )
     .map_err(|e| format!("write frames.json: {e}"))?;
     plot(&args.out.join("geomorph-frames.png"), &runs, &changed)?;
-    for ((mode, ..), c) in runs.iter().zip(&changed) {
+    println!(
+        "{:<48} {:>9} {:>8} {:>11} {:>11} {:>10} {:>10}",
+        "run", "max px %", "frames", "vertex KB", "index KB", "update ms", "write ms"
+    );
+    for ((mode, _, cost), c) in runs.iter().zip(&changed) {
         let (max, frames) = summary(c);
+        let sum = |v: &[u64]| v.iter().sum::<u64>() as f64 / 1024.0;
         println!(
-            "{:<36} largest change between frames {:>6.2} % of pixels, {frames} frames changing",
+            "{:<48} {:>9.2} {:>8} {:>11.1} {:>11.1} {:>10.3} {:>10.3}",
             mode.name(),
-            max * 100.0
+            max * 100.0,
+            frames,
+            sum(&cost.vertex_bytes),
+            sum(&cost.index_bytes),
+            common::stats::median(&cost.update_ms),
+            common::stats::median(&cost.write_ms),
         );
     }
+    println!(
+        "(max px %: the largest share of pixels changed between two frames; frames: frames \
+         with a change; KB: all {FRAMES} frames together; ms: per-frame medians)"
+    );
     println!(
         "CPU against GPU run: at most {:.3} % of pixels apart",
         json["cpu_gpu_apart_max"].as_f64().unwrap_or(1.0) * 100.0
@@ -281,6 +299,32 @@ fn run(args: &Args) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// What each frame of a run cost: the plugin's systems (`AslodStats::update_ms`) and its
+/// writes to the GPU (`RegionUploadStats`).
+#[derive(Default)]
+struct Cost {
+    triangles: Vec<u64>,
+    update_ms: Vec<f64>,
+    write_ms: Vec<f64>,
+    vertex_bytes: Vec<u64>,
+    index_bytes: Vec<u64>,
+}
+
+impl Cost {
+    fn add(&mut self, app: &App) {
+        let stats = app.world().resource::<AslodStats>();
+        let upload = app
+            .get_sub_app(RenderApp)
+            .and_then(|r| r.world().get_resource::<RegionUploadStats>().copied())
+            .unwrap_or_default();
+        self.triangles.push(stats.triangles);
+        self.update_ms.push(stats.update_ms);
+        self.write_ms.push(upload.write_ms);
+        self.vertex_bytes.push(upload.vertex_bytes);
+        self.index_bytes.push(upload.index_bytes);
+    }
 }
 
 /// A headless app whose frames are drawn in `update` (no pipelined rendering), on a clock
@@ -379,7 +423,7 @@ fn save(image: &Image, path: &Path) -> Result<(), String> {
 /// Per run, the share of pixels changed between consecutive frames.
 fn plot(
     path: &Path,
-    runs: &[(Mode, Vec<Image>, Vec<u64>)],
+    runs: &[(Mode, Vec<Image>, Cost)],
     changed: &[Vec<f64>],
 ) -> Result<(), String> {
     use plotters::prelude::*;
@@ -396,9 +440,9 @@ fn plot(
         let mut chart = ChartBuilder::on(area)
             .caption(
                 format!(
-                    "Pixels changed between consecutive frames (budget {HIGH} -> {LOW} at frame {DROP}, back at {BACK}; T = {T} s, 60 fps)"
+                    "Pixels changed since the previous frame: budget {HIGH} -> {LOW} at frame {DROP}, back at {BACK}, T = {T} s"
                 ),
-                ("sans-serif", 18),
+                ("sans-serif", 16),
             )
             .margin(12)
             .x_label_area_size(36)

@@ -6,7 +6,10 @@ use super::models::app;
 use bevy::mesh::VertexAttributeValues;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy_aslod::plugin::{AslodStats, MultiresInstance, MultiresMesh, MultiresModel};
+use bevy_aslod::plugin::{
+    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, AslodStats, GpuGeomorph, MultiresInstance,
+    MultiresMesh, MultiresModel,
+};
 use bevy_aslod::prelude::*;
 use bevy_aslod::regions::Partition;
 use std::time::Duration;
@@ -111,4 +114,130 @@ fn a_camera_cut_morphs_under_the_budget_and_comes_to_rest() {
     app.update();
     app.update();
     assert!(at_rest(&app, model, &asset).iter().all(|&r| r));
+}
+
+/// One region mesh's vertices as the geomorph vertex shader draws them at `time` (the shaders'
+/// clock), from its positions, normals and morph attributes.
+fn drawn_on_gpu(mesh: &Mesh, time: f32) -> Vec<Vec3> {
+    let (
+        Some(VertexAttributeValues::Float32x3(to)),
+        Some(VertexAttributeValues::Float32x4(from)),
+        Some(VertexAttributeValues::Float32x4(normal_from)),
+    ) = (
+        mesh.attribute(Mesh::ATTRIBUTE_POSITION),
+        mesh.attribute(ATTRIBUTE_MORPH_FROM),
+        mesh.attribute(ATTRIBUTE_MORPH_NORMAL_FROM),
+    )
+    else {
+        panic!("a GPU geomorph region mesh has its morph attributes");
+    };
+    to.iter()
+        .zip(from)
+        .zip(normal_from)
+        .map(|((&to, &[x, y, z, start]), &[.., inv])| {
+            let (to, from) = (Vec3::from(to), Vec3::new(x, y, z));
+            let elapsed = time - start;
+            let t = if elapsed < 0.0 || inv <= 0.0 {
+                1.0
+            } else {
+                (elapsed * inv).clamp(0.0, 1.0)
+            };
+            if t < 1.0 { from + (to - from) * t } else { to }
+        })
+        .collect()
+}
+
+fn region_meshes(app: &App, model: Entity) -> Vec<Mesh> {
+    let instance = app.world().get::<MultiresInstance>(model).unwrap();
+    let meshes = app.world().resource::<Assets<Mesh>>();
+    instance
+        .region_entities()
+        .iter()
+        .map(|&e| {
+            meshes
+                .get(&app.world().get::<Mesh3d>(e).unwrap().0)
+                .unwrap()
+                .clone()
+        })
+        .collect()
+}
+
+/// The same cut drawn by a model whose material interpolates on the GPU and one written
+/// from the CPU: every vertex a triangle uses is drawn at the same place in every frame,
+/// and the GPU model's vertices are written only in the frames a morph starts.
+#[test]
+fn gpu_geomorphs_draw_what_cpu_geomorphs_write_and_write_less() {
+    let mut app = app(BUDGET);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
+        1.0 / 60.0,
+    )));
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(cow());
+    let [cpu, gpu] = [false, true].map(|on_gpu| {
+        let mut model = app.world_mut().spawn((
+            MultiresModel(handle.clone()),
+            Geomorph(T),
+            Transform::default(),
+        ));
+        if on_gpu {
+            model.insert(GpuGeomorph);
+        }
+        model.id()
+    });
+    let camera = app
+        .world_mut()
+        .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 40.0)))
+        .id();
+    for _ in 0..60 {
+        app.update();
+    }
+    *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+        Transform::from_xyz(0.4, 0.1, 0.9).looking_at(Vec3::new(0.3, 0.0, 0.0), Vec3::Y);
+    let (mut cpu_writes, mut gpu_writes) = (0, 0);
+    let (mut last_cpu, mut last_gpu) = (region_meshes(&app, cpu), region_meshes(&app, gpu));
+    for frame in 0..40 {
+        app.update();
+        let time = app.world().resource::<Time>().elapsed_secs_wrapped();
+        let (now_cpu, now_gpu) = (region_meshes(&app, cpu), region_meshes(&app, gpu));
+        for (r, (c, g)) in now_cpu.iter().zip(&now_gpu).enumerate() {
+            let Some(VertexAttributeValues::Float32x3(written)) =
+                c.attribute(Mesh::ATTRIBUTE_POSITION)
+            else {
+                panic!("positions");
+            };
+            let drawn = drawn_on_gpu(g, time);
+            let indices: Vec<usize> = c.indices().unwrap().iter().collect();
+            assert_eq!(
+                indices,
+                g.indices().unwrap().iter().collect::<Vec<_>>(),
+                "frame {frame}, region {r}: the two models show other levels"
+            );
+            for i in indices {
+                let d = drawn[i].distance(Vec3::from(written[i]));
+                assert!(
+                    d < 1e-4,
+                    "frame {frame}, region {r}, vertex {i}: drawn {d} away from the CPU's"
+                );
+            }
+        }
+        let moved = |a: &[Mesh], b: &[Mesh]| {
+            a.iter().zip(b).any(|(a, b)| {
+                a.attribute(Mesh::ATTRIBUTE_POSITION) != b.attribute(Mesh::ATTRIBUTE_POSITION)
+                    || a.attribute(ATTRIBUTE_MORPH_FROM) != b.attribute(ATTRIBUTE_MORPH_FROM)
+            })
+        };
+        cpu_writes += usize::from(moved(&last_cpu, &now_cpu));
+        gpu_writes += usize::from(moved(&last_gpu, &now_gpu));
+        (last_cpu, last_gpu) = (now_cpu, now_gpu);
+    }
+    assert!(
+        cpu_writes >= 10,
+        "the CPU model wrote in {cpu_writes} frames"
+    );
+    assert!(
+        gpu_writes * 3 <= cpu_writes,
+        "the GPU model wrote in {gpu_writes} frames, the CPU model in {cpu_writes}"
+    );
 }

@@ -8,6 +8,7 @@ mod example_run;
 
 mod aerobic_class;
 mod basic;
+mod geomorph;
 mod level_changes;
 mod silvretta;
 mod skinned_character;
