@@ -15,6 +15,7 @@ mod common;
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
 use bevy::prelude::*;
+use bevy::render::RenderApp;
 use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
@@ -22,7 +23,8 @@ use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, Geomorph, GeomorphMaterial, MultiresMesh, MultiresModel, PolygonBudget,
+    AslodPlugin, AslodStats, Geomorph, GeomorphMaterial, MultiresMesh, MultiresModel,
+    PolygonBudget, RegionUploadStats,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use clap::Parser;
@@ -177,7 +179,7 @@ fn run(args: &Args) -> Result<(), String> {
             ));
         }
         let mut frames = vec![last];
-        let mut triangles = Vec::new();
+        let mut cost = Cost::default();
         for frame in 1..=FRAMES {
             let budget = if (DROP..BACK).contains(&frame) {
                 LOW
@@ -186,7 +188,7 @@ fn run(args: &Args) -> Result<(), String> {
             };
             app.world_mut().resource_mut::<PolygonBudget>().total = budget;
             step(&mut app);
-            triangles.push(app.world().resource::<AslodStats>().triangles);
+            cost.add(&app);
             frames.push(capture(&mut app, &target, &captured)?);
         }
         if args.frames {
