@@ -2,17 +2,19 @@
 //! the bunny (16 clusters), the Silvretta terrain (6×6 grid) and the mannequin at rest (16
 //! clusters), each along a camera path at 60 fps (1280×720, 60° vertical field of view)
 //! that orbits far for two seconds, cuts to near, and orbits there for two more. Every
-//! frame the budget is split by the α allocation over the regions' projected boxes; a
-//! coarsening region is fixed cost at its old count until its morph ends, and refinements
-//! take only what is free (`Geomorphs::apply_allocation`).
+//! frame the budget is split by the α allocation over the regions' projected boxes, and
+//! `Geomorphs::apply_allocation` applies it: a coarsening region keeps its old count until
+//! its morph ends, and refinements take only what is free.
 //!
 //! Per frame it measures the largest screen-space movement of any vertex, with the frame's
 //! camera (so only the geometry's change counts): a vertex shown in both frames by its own
 //! two positions, one that appears from where its stand-in at the old level was shown, one
 //! that vanishes to where its stand-in at the new level is shown. Also the shown triangles
 //! against the budget, the CPU time of the morph bookkeeping (level requests, `update`, and
-//! the positions of every region whose vertices move), and the bytes a CPU write of those
-//! positions and normals would upload.
+//! the positions of every region whose vertices move), the bytes a CPU write of those
+//! positions and normals would upload, and the bytes the GPU path writes instead (the runs of
+//! vertices a morph started on, `Geomorphs::take_restarted`, 56 B each). T = 1 s shows what
+//! a longer morph does to the largest movement.
 //!
 //! `cargo bench --no-default-features --bench geomorph`
 
@@ -99,9 +101,12 @@ struct Run {
     movement: Vec<f32>,
     /// The largest shown total over the budget.
     over_budget: f32,
-    /// Per frame: morph bookkeeping in ms, bytes a CPU write of positions would upload.
+    /// Per frame: morph bookkeeping in ms, bytes a CPU write of positions and normals
+    /// would upload, bytes the GPU path writes (the vertices morphs started on, each with
+    /// its position, normal and two morph attributes: 56 B).
     cpu_ms: Vec<f64>,
     bytes: Vec<usize>,
+    gpu_bytes: Vec<usize>,
 }
 
 fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames: usize) -> Run {
@@ -127,6 +132,7 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
         over_budget: 0.0,
         cpu_ms: Vec::new(),
         bytes: Vec::new(),
+        gpu_bytes: Vec::new(),
     };
     let mut part = Vec::new();
     let mut positions = Vec::new();
@@ -134,28 +140,18 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
         let now = f as f32 * DT;
         let (clip, area_camera) = camera(f, frames, centre, radius);
         area_camera.projected_areas(obbs, &mut areas);
-        // Coarsening regions are fixed cost at their shown count; the others share the rest.
-        let fixed: u32 = (0..regions.regions().len())
-            .filter(|&r| morphs.is_coarsening(r))
-            .map(|r| caches.triangle_count(r) as u32)
-            .sum();
+        // The view's allocation, whatever is morphing (`apply_allocation` holds the budget).
         inputs.clear();
         for (r, (region, &area)) in regions.regions().iter().zip(&areas).enumerate() {
-            let weight = if morphs.is_coarsening(r) { 0.0 } else { area };
-            let (min, max) = if morphs.is_coarsening(r) {
-                (0, 0)
-            } else {
-                (region.min_triangles() as u32, region.max_triangles() as u32)
-            };
             inputs.push(RegionInput::from_area(
-                weight,
+                area,
                 1.0,
-                min,
-                max,
+                region.min_triangles() as u32,
+                region.max_triangles() as u32,
                 caches.triangle_count(r) as u32,
             ));
         }
-        let params = AllocationParams::with_budget(budget.saturating_sub(fixed).max(1));
+        let params = AllocationParams::with_budget(budget);
         allocator
             .allocate(&params, &inputs, &mut counts)
             .expect("valid inputs");
@@ -171,6 +167,13 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
         }
         out.cpu_ms.push(start.elapsed().as_secs_f64() * 1e3);
         out.bytes.push(bytes);
+        let runs = morphs.take_restarted(regions);
+        out.gpu_bytes.push(
+            runs.iter()
+                .flatten()
+                .map(|&(lo, hi)| 56 * (hi - lo + 1) as usize)
+                .sum(),
+        );
         let total: usize = (0..regions.regions().len())
             .map(|r| caches.triangle_count(r))
             .sum();
@@ -231,22 +234,23 @@ fn main() {
     let quick = args.iter().any(|a| a == "--test") || cfg!(debug_assertions);
     let frames = if quick { 24 } else { 240 };
     println!(
-        "| scene | T | largest movement, px (any frame) | frames over 1 px | 99th percentile px | shown / budget (max) | morph CPU per frame (median, max) | bytes a CPU write would upload per frame (median, max) |"
+        "| scene | T | largest movement, px (any frame) | frames over 1 px | 99th percentile px | shown / budget (max) | morph CPU per frame (median, max) | bytes a CPU write would upload per frame (median, max) | bytes the GPU path writes per frame (median, max) |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
     for scene in scenes(quick) {
         let regions = RegionMesh::build(&scene.mesh, &scene.partition, &BuildOptions::default())
             .expect("builds");
         let obbs: Vec<Obb> = regions.regions().iter().map(Region::obb).collect();
-        for duration in [0.0, 0.25] {
+        for duration in [0.0, 0.25, 1.0] {
             let r = run(&scene, &regions, &obbs, duration, frames);
             let mut sorted = r.movement.clone();
             sorted.sort_by(f32::total_cmp);
             let p99 = sorted[(sorted.len() * 99 / 100).min(sorted.len() - 1)];
             let over = r.movement.iter().filter(|&&m| m > 1.0).count();
             let bytes: Vec<f64> = r.bytes.iter().map(|&b| b as f64).collect();
+            let gpu: Vec<f64> = r.gpu_bytes.iter().map(|&b| b as f64).collect();
             println!(
-                "| {} | {duration} s | {:.1} | {over} of {} | {p99:.2} | {:.3} | {:.3} ms, {:.3} ms | {:.0} B, {:.0} B |",
+                "| {} | {duration} s | {:.1} | {over} of {} | {p99:.2} | {:.3} | {:.3} ms, {:.3} ms | {:.0} B, {:.0} B | {:.0} B, {:.0} B |",
                 scene.name,
                 sorted.last().copied().unwrap_or(0.0),
                 r.movement.len(),
@@ -255,6 +259,8 @@ fn main() {
                 r.cpu_ms.iter().copied().fold(0.0, f64::max),
                 median(bytes.clone()),
                 bytes.iter().copied().fold(0.0, f64::max),
+                median(gpu.clone()),
+                gpu.iter().copied().fold(0.0, f64::max),
             );
         }
     }

@@ -133,16 +133,11 @@ pub(super) fn embed_shaders(app: &mut App) {
 }
 
 /// Keeps [`GpuGeomorph`] on the models that have the geomorph material `B`.
+#[allow(clippy::type_complexity)]
 fn mark_gpu_models<B: Material>(
     mut commands: Commands,
-    added: Query<
-        Entity,
-        (
-            With<MultiresModel>,
-            Added<MeshMaterial3d<ExtendedMaterial<B, GeomorphExtension>>>,
-        ),
-    >,
-    mut removed: RemovedComponents<MeshMaterial3d<ExtendedMaterial<B, GeomorphExtension>>>,
+    added: Query<Entity, (With<MultiresModel>, Added<MeshMaterial3d<M<B>>>)>,
+    mut removed: RemovedComponents<MeshMaterial3d<M<B>>>,
     models: Query<(), With<MultiresModel>>,
 ) {
     for entity in &added {

@@ -394,6 +394,8 @@ pub struct MultiresInstance {
 #[derive(Debug)]
 struct MorphState {
     morphs: crate::regions::Geomorphs,
+    /// The time `SelectLod` applied the morphs at (`Deform` blends skinned ones at it).
+    now: f32,
     /// The material interpolates on the GPU ([`GpuGeomorph`]): a vertex is written when a
     /// morph starts on it, with the morph attributes.
     gpu: bool,

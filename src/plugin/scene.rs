@@ -1,7 +1,7 @@
 //! Turning the meshes of a spawned scene (typically a glTF character) into multiresolution
 //! models, so Bevy's own loader, joints and `AnimationPlayer` drive them.
 
-use super::{CountInBudget, MultiresMesh, MultiresModel, MultiresSkin, PartitionSpec};
+use super::{CountInBudget, Geomorph, MultiresMesh, MultiresModel, MultiresSkin, PartitionSpec};
 use crate::bevy_mesh::from_bevy_mesh;
 use crate::skin::DEFAULT_RIGID_DELTA;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
@@ -22,6 +22,7 @@ use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
 ///   hierarchy animates it (ASLOD section 4).
 /// - A mesh with morph targets stays conventional and counts against the budget as fixed
 ///   cost ([`CountInBudget`]), with a warning (once).
+/// - A [`Geomorph`] on this entity goes to every model it makes.
 ///
 /// The original mesh handle moves to [`MultiresSourceMesh`] on its entity. Assets are built
 /// once per source mesh, on Bevy's [`AsyncComputeTaskPool`], and shared by every scene that
@@ -254,7 +255,7 @@ impl SceneAssetCache {
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 pub(crate) fn convert_scenes(
     mut commands: Commands,
-    scenes: Query<(Entity, &MultiresScene), Without<MultiresSceneModels>>,
+    scenes: Query<(Entity, &MultiresScene, Option<&Geomorph>), Without<MultiresSceneModels>>,
     children: Query<&Children>,
     mesh_entities: Query<(
         &Mesh3d,
@@ -279,7 +280,7 @@ pub(crate) fn convert_scenes(
         return;
     };
     cache.poll(&mut multires, &server);
-    for (root, options) in &scenes {
+    for (root, options, geomorph) in &scenes {
         let found: Vec<Entity> = children
             .iter_descendants(root)
             .filter(|&e| mesh_entities.contains(e))
@@ -390,14 +391,20 @@ pub(crate) fn convert_scenes(
                     if let Some(material) = material {
                         model.insert(material.clone());
                     }
+                    if let Some(&geomorph) = geomorph {
+                        model.insert(geomorph);
+                    }
                     result.skinned.push(model.id());
                     commands.entity(entity).remove::<Mesh3d>().insert(source);
                 }
                 None => {
-                    commands
-                        .entity(entity)
+                    let mut model = commands.entity(entity);
+                    model
                         .remove::<Mesh3d>()
                         .insert((source, MultiresModel(handle)));
+                    if let Some(&geomorph) = geomorph {
+                        model.insert(geomorph);
+                    }
                     result.rigid.push(entity);
                 }
             }

@@ -11,14 +11,16 @@
 //!   cache changed;
 //! - the few vertices of *other* regions that a region's border triangles use are placed the
 //!   way their own region places them (a rigid vertex by its bone alone), converted into the
-//!   drawing region's space, so both sides of a border put a shared vertex at one position.
+//!   drawing region's space, so both sides of a border put a shared vertex at one position;
+//! - under geomorphs, a moving vertex is skinned from where its morph shows it in bind space
+//!   (`Geomorphs::position`), and a moving rigid region writes its own vertices too.
 
 use super::tasks::par_chunks;
 use super::{MultiresError, MultiresMesh};
 use crate::budget::Obb;
 use crate::mesh::IndexedMesh;
 use crate::mrm::{BakedMesh, BakedSkin};
-use crate::regions::{RegionCaches, RegionMesh};
+use crate::regions::{Geomorphs, RegionCaches, RegionMesh};
 use crate::skin::{Influences, SkinRegionKind, blend};
 use bevy::prelude::*;
 use glam::{Affine3A, Mat3, Mat4, Vec3};
@@ -230,6 +232,16 @@ pub(crate) struct RegionSkin {
     stamp: Vec<u32>,
     generation: u32,
     pub(crate) indices_changed: bool,
+    /// Under geomorphs: the `Deform`s left that write the region from its morphs: while
+    /// it moves, and twice after, at rest, so both of its buffers end current (a rigid
+    /// region's own vertices are written only then).
+    morph_passes: u8,
+    /// `referenced` holds a rigid region's own vertices (while `morph_passes` is not 0).
+    refers_to_own: bool,
+    /// Under geomorphs: the bind-space positions and normals the region's vertices are
+    /// skinned from (the source's, moving ones where their morph shows them).
+    morph_positions: Vec<Vec3>,
+    morph_normals: Vec<Vec3>,
 }
 
 impl RegionSkin {
@@ -306,15 +318,38 @@ impl SkinState {
     }
 
     /// Writes the index buffers of the regions whose cache changed, and the vertices they
-    /// refer to.
-    fn refresh_indices(&mut self, caches: &mut RegionCaches, regions: &RegionMesh) {
+    /// refer to; under geomorphs, notes which regions move (a moving rigid region refers to
+    /// its own vertices too, until both its buffers hold them at rest).
+    fn refresh_indices(
+        &mut self,
+        caches: &mut RegionCaches,
+        regions: &RegionMesh,
+        morphs: Option<&Geomorphs>,
+    ) {
         for (r, state) in self.regions.iter_mut().enumerate() {
+            let moving = morphs.is_some_and(|m| m.is_region_moving(regions, r));
+            state.morph_passes = if moving {
+                3
+            } else {
+                state.morph_passes.saturating_sub(1)
+            };
+            let with_own = state.morph_passes > 0;
+            let rigid = matches!(self.binding.kinds[r], SkinRegionKind::Rigid { .. });
+            let own = regions.regions()[r].own_vertices;
             if caches.is_dirty(r) {
                 caches.write_indices(regions, r, &mut state.indices);
                 state.indices_changed = true;
-                let rigid = matches!(self.binding.kinds[r], SkinRegionKind::Rigid { .. });
-                state.refresh_referenced(regions.regions()[r].own_vertices, rigid);
+                state.refresh_referenced(own, rigid && !with_own);
+            } else if rigid && with_own != state.refers_to_own {
+                // (`indices` is not the mesh's buffer after `Upload`: own vertices are
+                // added whole, or taken out.)
+                if with_own {
+                    state.referenced.extend(0..own as u32);
+                } else {
+                    state.referenced.retain(|&v| v as usize >= own);
+                }
             }
+            state.refers_to_own = with_own;
         }
     }
 
@@ -417,6 +452,9 @@ struct Job<'a> {
     region: &'a mut RegionSkin,
     influences: &'a Influences,
     source: &'a IndexedMesh,
+    /// Under geomorphs: where the region's vertices are shown in bind space now, and the
+    /// region's source vertices.
+    morph: Option<(&'a Geomorphs, f32, &'a [u32])>,
     matrices: &'a [Mat4],
     /// For a rigid region: root space -> its joint's space.
     to_local: Option<Affine3A>,
@@ -427,12 +465,43 @@ impl Job<'_> {
         let r = &mut *self.region;
         r.written.clear();
         r.written.extend_from_slice(&r.referenced);
+        let (source_positions, source_normals) = match self.morph {
+            Some((morphs, now, global)) => {
+                // Only the vertices written are read: those are brought up to date.
+                if r.morph_positions.len() != self.source.positions.len() {
+                    r.morph_positions.clone_from(&self.source.positions);
+                    r.morph_normals = self
+                        .source
+                        .normals
+                        .clone()
+                        .unwrap_or_else(|| vec![Vec3::Y; self.source.positions.len()]);
+                }
+                for &v in &r.written {
+                    let (v, g) = (v as usize, global[v as usize]);
+                    r.morph_positions[v] = morphs.position(g, now);
+                    if let Some(n) = morphs.normal(g, now) {
+                        r.morph_normals[v] = n;
+                    }
+                }
+                (
+                    r.morph_positions.as_slice(),
+                    self.source
+                        .normals
+                        .as_ref()
+                        .map(|_| r.morph_normals.as_slice()),
+                )
+            }
+            None => (
+                self.source.positions.as_slice(),
+                self.source.normals.as_deref(),
+            ),
+        };
         let positions: &mut [Vec3] = bytemuck::cast_slice_mut(&mut r.positions);
         let normals: &mut [Vec3] = bytemuck::cast_slice_mut(&mut r.normals);
         blend(
             self.matrices,
-            &self.source.positions,
-            self.source.normals.as_deref(),
+            source_positions,
+            source_normals,
             self.influences,
             &r.written,
             positions,
@@ -457,27 +526,38 @@ impl Job<'_> {
     }
 }
 
+/// One skinned instance for [`deform`]: its caches, regions, deformation state, and its
+/// geomorphs with the frame's time.
+pub(crate) type DeformInput<'a> = (
+    &'a mut RegionCaches,
+    &'a RegionMesh,
+    &'a mut SkinState,
+    Option<(&'a Geomorphs, f32)>,
+);
+
 /// `Deform` for every skinned instance: refresh the index buffers of regions whose cache
 /// changed (in parallel over instances), then blend, in parallel over regions, the vertices
 /// of each region whose joints moved or whose buffer changed; both on the compute task pool
 /// and the calling thread.
 /// Returns the vertices blended.
-pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut SkinState)]) -> usize {
+pub(crate) fn deform(instances: &mut [DeformInput<'_>]) -> usize {
     par_chunks(instances, |chunk| {
-        for (caches, regions, skin) in chunk {
-            skin.refresh_indices(caches, regions);
+        for (caches, regions, skin, morph) in chunk {
+            skin.refresh_indices(caches, regions, morph.map(|(m, _)| m));
         }
     });
 
     let mut jobs: Vec<Job<'_>> = Vec::new();
-    for (_, regions, skin) in instances.iter_mut() {
+    for (_, regions, skin, morph) in instances.iter_mut() {
         let skin = &mut **skin;
+        let morph = *morph;
         for (r, state) in skin.regions.iter_mut().enumerate() {
             let region = &regions.regions()[r];
             let moved = skin.binding.region_joints[r]
                 .iter()
                 .any(|&j| skin.moved.get(j as usize).copied().unwrap_or(false));
-            if !(moved || state.indices_changed) || state.referenced.is_empty() {
+            let morphing = state.morph_passes > 0;
+            if !(moved || state.indices_changed || morphing) || state.referenced.is_empty() {
                 state.written.clear();
                 continue;
             }
@@ -496,6 +576,9 @@ pub(crate) fn deform(instances: &mut [(&mut RegionCaches, &RegionMesh, &mut Skin
                 region: state,
                 influences: &skin.binding.local[r],
                 source: region.progressive_mesh().vertices(),
+                morph: morph
+                    .filter(|_| morphing)
+                    .map(|(m, now)| (m, now, region.global_vertices())),
                 matrices: &skin.matrices,
                 to_local,
             });

@@ -812,11 +812,9 @@ fn region_inputs(
         };
         let area = if area.is_finite() { area } else { 0.0 };
         let shown = instance.caches.triangle_count(r) as u32;
-        // A coarsening region counts its old triangles until they go: fixed cost.
-        let (min, max) = match &instance.morph {
-            Some(m) if m.morphs.is_coarsening(r) => (shown, shown),
-            _ => (region.min_triangles() as u32, region.max_triangles() as u32),
-        };
+        // Geomorphs or not, the allocation is the view's (`Geomorphs::apply_allocation`
+        // holds the budget while regions morph).
+        let (min, max) = (region.min_triangles() as u32, region.max_triangles() as u32);
         *input = RegionInput::from_area(area, c, min, max, shown);
     }
 }
@@ -891,14 +889,22 @@ fn select_lod(
                 instance.targets.copy_from_slice(run);
             }
             let shown = if let Some(morph) = &mut instance.morph {
-                // Under the model's own allocation: coarsening regions were fixed at their
-                // shown count there, so the model never shows more than it was given.
+                // Under the model's own allocation: coarsening regions keep their old
+                // triangles and refinements take what is free, so the model never shows more
+                // than it was given.
                 let budget: u64 = instance.targets.iter().map(|&t| u64::from(t)).sum();
                 let (regions, caches) = (&instance.regions, &mut instance.caches);
                 let m = &mut morph.morphs;
                 m.apply_allocation(regions, caches, &instance.targets, budget as usize, now);
                 m.update(regions, caches, now);
-                morph.stage(regions, clock);
+                morph.now = now;
+                // Skinned models are written in `Deform`, from the morphs (which writes a
+                // region once more at rest after its morph).
+                if instance.skin.is_none() {
+                    morph.stage(regions, clock);
+                } else {
+                    morph.moved.fill(false);
+                }
                 caches.total_triangles() as u64
             } else {
                 let mut shown = 0;
@@ -948,12 +954,15 @@ fn select_lod(
 /// them puts every vertex back at its own place at the next `Upload`), on the GPU when its
 /// material interpolates them.
 fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32, gpu: bool) {
-    let wanted = seconds > 0.0 && instance.skin.is_none() && instance.fine.is_none();
+    let wanted = seconds > 0.0 && instance.fine.is_none();
+    // Skinned models blend their moving vertices in `Deform`, on the CPU.
+    let gpu = gpu && instance.skin.is_none();
     match (&mut instance.morph, wanted) {
         (None, true) => {
             let n = instance.regions.regions().len();
             instance.morph = Some(MorphState {
                 morphs: crate::regions::Geomorphs::new(&instance.regions, seconds),
+                now: 0.0,
                 gpu,
                 attributes: false,
                 moved: vec![gpu; n],
@@ -1085,7 +1094,8 @@ fn deform(
     for instance in &mut skinned {
         let instance = &mut **instance;
         if let Some(state) = &mut instance.skin {
-            work.push((&mut instance.caches, &*instance.regions, state));
+            let morph = instance.morph.as_ref().map(|m| (&m.morphs, m.now));
+            work.push((&mut instance.caches, &*instance.regions, state, morph));
         }
     }
     let blended = skin::deform(&mut work);

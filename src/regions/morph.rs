@@ -259,6 +259,7 @@ impl Geomorphs {
         if goal == before {
             return caches.triangle_count(region);
         }
+
         // Vertices heading for representatives at a level no longer wanted turn back.
         for step in goal.max(shown)..before.max(shown) {
             for i in 0..self.tables.removed_at[region][step].len() {
@@ -319,15 +320,20 @@ impl Geomorphs {
     }
 
     /// Applies one frame's allocation (`counts`, one per region, as the budget's allocator
-    /// gives them) under the budget `budget`, so that the triangles shown never exceed it:
+    /// gives them for the view, whatever is morphing) under the budget `budget`, so that the
+    /// triangles shown never exceed it:
     ///
-    /// - regions already coarsening keep their old triangles and are left alone until they
-    ///   arrive (the allocator should see them as fixed cost at
-    ///   [`triangle_count`](Self::triangle_count));
-    /// - regions asked for fewer triangles start coarsening, and still count their old ones;
+    /// - regions asked for fewer triangles coarsen (or keep coarsening toward the new
+    ///   count), and count their old triangles until their vertices arrive;
+    /// - a coarsening region asked for at least what it shows turns back, at no cost: it
+    ///   shows those triangles already;
     /// - regions asked for more take only what is left under `budget`, largest request first,
     ///   so a refinement that needs the triangles of a coarsening elsewhere waits for them
     ///   (at most [`duration`](Self::duration)).
+    ///
+    /// The allocation does not depend on what is morphing, so the levels it asks for stay put
+    /// while the view does (counting a morph's triangles in the allocation itself would feed
+    /// back into the next one, and levels near a step would go back and forth).
     ///
     /// Returns the triangles shown, all regions together. With a duration of `0`, every count
     /// is applied as it is.
@@ -346,13 +352,12 @@ impl Geomorphs {
         let mut refine = Vec::new();
         for (r, &count) in counts.iter().enumerate() {
             let (count, shown) = (count as usize, caches.triangle_count(r));
-            if self.duration == 0.0 {
+            if self.duration == 0.0 || count < shown {
                 self.set_triangle_count(mesh, caches, r, count, now);
             } else if self.is_coarsening(r) {
-                continue;
-            } else if count < shown {
-                self.set_triangle_count(mesh, caches, r, count, now);
-            } else if count > shown {
+                self.set_triangle_count(mesh, caches, r, shown, now);
+            }
+            if count > caches.triangle_count(r) {
                 refine.push(r);
             }
         }
@@ -401,10 +406,14 @@ impl Geomorphs {
         let morphs = &self.morphs;
         self.normal_morphs
             .retain(|g, _| morphs.contains_key(&position_of[*g as usize]));
+        // A position's copies (seams, and vertices of skinned regions that meet in the bind
+        // pose) may lie in regions other than its first vertex's.
         self.moving.fill(0);
         let region_of = mesh.partition().region_of();
         for &p in self.morphs.keys() {
-            self.moving[region_of[p as usize] as usize] += 1;
+            for &g in self.tables.copies.get(p as usize) {
+                self.moving[region_of[g as usize] as usize] += 1;
+            }
         }
     }
 
@@ -484,14 +493,17 @@ impl Geomorphs {
         if self.restarted.is_empty() {
             return runs;
         }
-        // Positions live in their owner's region and in the neighbours' that draw them.
+        // A position's vertices live in their owners' regions and in the neighbours' that
+        // draw them.
         let region_of = mesh.partition().region_of();
         let mut touched = vec![false; runs.len()];
         for &p in &self.restarted {
-            let owner = region_of[p as usize] as usize;
-            touched[owner] = true;
-            for &n in &mesh.regions()[owner].neighbors {
-                touched[n as usize] = true;
+            for &g in self.tables.copies.get(p as usize) {
+                let owner = region_of[g as usize] as usize;
+                touched[owner] = true;
+                for &n in &mesh.regions()[owner].neighbors {
+                    touched[n as usize] = true;
+                }
             }
         }
         for (r, run) in runs.iter_mut().enumerate() {

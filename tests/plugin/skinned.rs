@@ -10,12 +10,13 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::render::RenderPlugin;
 use bevy::render::settings::{RenderCreation, WgpuSettings};
+use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, AslodViewport, MultiresInstance, MultiresScene, MultiresSceneModels,
-    MultiresSourceMesh, PolygonBudget, VariableLevel, ViewDependent,
+    AslodPlugin, AslodStats, AslodViewport, Geomorph, MultiresInstance, MultiresScene,
+    MultiresSceneModels, MultiresSourceMesh, PolygonBudget, VariableLevel, ViewDependent,
 };
 use std::time::Duration;
 
@@ -360,32 +361,106 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
                 3 * stats.triangles,
                 "P = {budget}: drawn indices"
             );
-            // One place per source vertex.
-            let mut place: std::collections::HashMap<u32, Vec3> = Default::default();
-            for &(v, _, drawn) in &pairs {
-                let first = *place.entry(v).or_insert(drawn);
+            assert_watertight(&pairs, height, &format!("P = {budget}, t = {t}"));
+        }
+    }
+}
+
+/// One place per source vertex, and closed: each directed edge once, and its reverse once.
+fn assert_watertight(pairs: &[(u32, Vec3, Vec3)], height: f32, at: &str) {
+    let mut place: std::collections::HashMap<u32, Vec3> = Default::default();
+    for &(v, _, drawn) in pairs {
+        let first = *place.entry(v).or_insert(drawn);
+        assert!(
+            first.distance(drawn) <= 1e-5 * height,
+            "{at}: vertex {v} drawn at {first} and {drawn}"
+        );
+    }
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    for tri in pairs.chunks_exact(3) {
+        let (a, b, c) = (tri[0].0, tri[1].0, tri[2].0);
+        for e in [(a, b), (b, c), (c, a)] {
+            *edges.entry(e).or_default() += 1;
+        }
+    }
+    for (&(a, b), &n) in &edges {
+        assert_eq!(n, 1, "{at}: edge {a}-{b} used {n} times one way");
+        assert_eq!(
+            edges.get(&(b, a)),
+            Some(&1),
+            "{at}: edge {a}-{b} has no twin (a crack or a hole)"
+        );
+    }
+}
+
+/// Geomorphs on the dancing mannequin: when the budget rises, its regions refine over the
+/// morph time while it dances, never over the budget and never open; when it falls, they
+/// coarsen without opening; held still, the morphs end with every drawn vertex where
+/// reference skinning puts it.
+#[test]
+fn a_dancing_skinned_model_morphs_closed_and_comes_to_rest() {
+    let mut app = app(1_000_000, ASSETS);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
+        1.0 / 60.0,
+    )));
+    let (root, node, player, length) = spawn_character(&mut app, MANNEQUIN, "Aerobics");
+    let models: Vec<Entity> = app
+        .world()
+        .get::<MultiresSceneModels>(root)
+        .expect("converted")
+        .models()
+        .collect();
+    for &model in &models {
+        app.world_mut().entity_mut(model).insert(Geomorph(0.25));
+    }
+    let (lo, hi) = app
+        .world_mut()
+        .query::<&MultiresInstance>()
+        .iter(app.world())
+        .flat_map(|i| i.regions().regions().iter())
+        .fold((0, 0), |(lo, hi), r| {
+            (lo + r.min_triangles(), hi + r.max_triangles())
+        });
+    let mut t = 0.0;
+    let dance = |app: &mut App, t: &mut f32| {
+        *t = (*t + 1.0 / 60.0) % length;
+        seek(app, player, node, *t);
+    };
+    for (budget, rising) in [(lo + (hi - lo) / 50, false), (hi, true), (lo, false)] {
+        let budget = budget as u32;
+        app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+        let mut moving = 0;
+        for frame in 0..40 {
+            dance(&mut app, &mut t);
+            let stats = *app.world().resource::<AslodStats>();
+            if rising {
                 assert!(
-                    first.distance(drawn) <= 1e-5 * height,
-                    "P = {budget}, t = {t}: vertex {v} drawn at {first} and {drawn}"
+                    stats.triangles <= u64::from(budget),
+                    "P = {budget}, frame {frame}: {} triangles",
+                    stats.triangles
                 );
             }
-            // Closed: each directed edge once, and its reverse once.
-            let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
-            for tri in pairs.chunks_exact(3) {
-                let (a, b, c) = (tri[0].0, tri[1].0, tri[2].0);
-                for e in [(a, b), (b, c), (c, a)] {
-                    *edges.entry(e).or_default() += 1;
-                }
-            }
-            for (&(a, b), &n) in &edges {
-                assert_eq!(n, 1, "P = {budget}: edge {a}-{b} used {n} times one way");
-                assert_eq!(
-                    edges.get(&(b, a)),
-                    Some(&1),
-                    "P = {budget}, t = {t}: edge {a}-{b} has no twin (a crack or a hole)"
-                );
+            let (height, _, pairs) = compare(&mut app, root);
+            assert_watertight(&pairs, height, &format!("P = {budget}, frame {frame}"));
+            if worst(&pairs) > 1e-4 * height {
+                moving += 1;
             }
         }
+        assert!(
+            moving >= 10,
+            "P = {budget}: vertices off their skinned places in {moving} frames"
+        );
+        // Held still, the levels settle and the morphs end: coarsenings within T, and the
+        // refinements that waited for their triangles within T more.
+        for _ in 0..45 {
+            seek(&mut app, player, node, t);
+        }
+        let (height, _, pairs) = compare(&mut app, root);
+        assert!(
+            worst(&pairs) <= 1e-4 * height,
+            "P = {budget}: at rest, a vertex {} from its place",
+            worst(&pairs)
+        );
     }
 }
 
