@@ -283,7 +283,7 @@ fn a_duration_of_zero_is_the_plain_caches() {
 }
 
 #[test]
-fn an_allocation_under_geomorphs_never_shows_more_than_the_budget() {
+fn an_allocation_under_geomorphs_never_shows_more_than_the_budget_and_settles() {
     let mesh = testdata_mesh("cow.obj");
     let rm = regions(&mesh, 8);
     let mut caches = RegionCaches::new(&rm);
@@ -292,15 +292,20 @@ fn an_allocation_under_geomorphs_never_shows_more_than_the_budget() {
     }
     let mut morphs = Geomorphs::new(&rm, T);
     let budget = mesh.triangle_count() / 4;
+    let least: usize = rm.regions().iter().map(|r| r.min_triangles()).sum();
     let mut rng = Rng(11);
     let mut now = 0.0;
     for frame in 0..300 {
-        // Random wishes that sum to the budget: regions trade triangles every frame.
+        // Random wishes that sum to the budget, each at least its region's coarsest level
+        // (as an allocator gives them): regions trade triangles every frame.
         let weights: Vec<f32> = (0..rm.regions().len()).map(|_| rng.unit() + 0.01).collect();
         let sum: f32 = weights.iter().sum();
         let counts: Vec<u32> = weights
             .iter()
-            .map(|w| (w / sum * budget as f32) as u32)
+            .zip(rm.regions())
+            .map(|(w, region)| {
+                (region.min_triangles() as f32 + w / sum * (budget - least) as f32) as u32
+            })
             .collect();
         let total = morphs.apply_allocation(&rm, &mut caches, &counts, budget, now);
         assert!(
@@ -313,6 +318,29 @@ fn an_allocation_under_geomorphs_never_shows_more_than_the_budget() {
             caches.total_triangles() <= budget,
             "frame {frame} after update"
         );
+        // Every 50 frames the wishes stay put for a while (a still view): coarsenings land
+        // within T, the refinements that waited for their triangles within T more, and the
+        // levels are the ones asked for.
+        if frame % 50 == 49 {
+            for _ in 0..31 {
+                morphs.apply_allocation(&rm, &mut caches, &counts, budget, now);
+                now += 1.0 / 60.0;
+                morphs.update(&rm, &mut caches, now);
+            }
+            assert!(!morphs.is_morphing(), "frame {frame}: still morphing");
+            let mut plain = RegionCaches::new(&rm);
+            for (r, &count) in counts.iter().enumerate() {
+                plain.set_triangle_count(&rm, r, count as usize);
+                assert_eq!(
+                    caches.level(r),
+                    plain.level(r),
+                    "frame {frame}, region {r}: asked {count}, shows {} (plain {}), all {} of {budget}",
+                    caches.triangle_count(r),
+                    plain.triangle_count(r),
+                    caches.total_triangles()
+                );
+            }
+        }
     }
 }
 
