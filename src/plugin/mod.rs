@@ -320,22 +320,36 @@ pub struct MultiresModel(pub Handle<MultiresMesh>);
 /// Geomorphs on a [`MultiresModel`]: its level changes take this many seconds instead of
 /// a frame (`regions::Geomorphs`). A refining region changes its triangles at once and its
 /// new vertices grow out of their representatives; a coarsening region keeps its triangles,
-/// and counts them in the budget, until its vanishing vertices have reached their
-/// representatives, so the budget holds during morphs (a lower [`PolygonBudget`] is met once
-/// the coarsening regions arrive, after the morph time). Borders stay closed: a vertex moves
-/// the same way in every region that draws it. `0` (or no component) changes levels at
-/// once.
+/// and counts them, until its vanishing vertices have reached their representatives. The
+/// allocation is the view's, whatever is morphing; the budget holds because refinements only
+/// take the triangles that are free, so one that needs a coarsening's triangles waits for
+/// them (a lower [`PolygonBudget`] is met once the coarsening regions arrive, after the
+/// morph time). Borders stay closed: a vertex moves the same way in every region that draws
+/// it. `0` (or no component) changes levels at once; [`Default`] is
+/// [`DEFAULT_SECONDS`](Self::DEFAULT_SECONDS). A [`MultiresScene`] with one gives it to
+/// every model it makes.
 ///
-/// With a [`GeomorphMaterial`] (or another material with [`GpuGeomorph`]) the vertex
-/// shaders interpolate the morphs: a vertex is written once when a morph starts on it. With
-/// any other material the moving regions' positions and normals are written from the CPU
-/// each frame they move.
+/// Unskinned models with a [`GeomorphMaterial`] (or another material with [`GpuGeomorph`])
+/// are interpolated by the vertex shaders: a vertex is written once, when a morph starts
+/// on it. With any other material their moving regions' positions and normals are written
+/// from the CPU each frame they move. Skinned models blend their moving vertices in
+/// `Deform`, from where the morphs show them in the bind pose.
 ///
-/// **Partial:** unskinned, region models only (skinned and [`ViewDependent`] models change
-/// levels at once).
-#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq)]
-#[reflect(Component)]
+/// **Partial:** [`ViewDependent`] models change levels at once.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Default)]
 pub struct Geomorph(pub f32);
+
+impl Geomorph {
+    /// The default morph time: a quarter second.
+    pub const DEFAULT_SECONDS: f32 = 0.25;
+}
+
+impl Default for Geomorph {
+    fn default() -> Self {
+        Self(Self::DEFAULT_SECONDS)
+    }
+}
 
 /// A region child of a [`MultiresModel`]: which region of the mesh its `Mesh3d` shows.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq, Eq)]
