@@ -18,7 +18,7 @@ use bevy::prelude::*;
 use bevy::render::render_resource::{
     AsBindGroup, RenderPipelineDescriptor, SpecializedMeshPipelineError, VertexFormat,
 };
-use bevy::shader::ShaderRef;
+use bevy::shader::{ShaderRef, load_shader_library};
 
 /// Where a morphing vertex started (`xyz`, in the mesh's space) and when (`w`, seconds on
 /// the clock of Bevy's `Time`, wrapped as the shaders' `globals.time` is).
@@ -128,6 +128,7 @@ where
 
 /// Embeds the shaders (once, whichever plugin comes first).
 pub(super) fn embed_shaders(app: &mut App) {
+    load_shader_library!(app, "geomorph_common.wgsl");
     embedded_asset!(app, "geomorph.wgsl");
     embedded_asset!(app, "geomorph_prepass.wgsl");
 }

@@ -9,6 +9,7 @@
     mesh_view_bindings::globals,
     view_transformations::position_world_to_clip,
 }
+#import bevy_aslod::geomorph
 
 struct Vertex {
     @builtin(instance_index) instance_index: u32,
@@ -40,34 +41,19 @@ struct Vertex {
 #endif
 };
 
-// How far a morph started at `start` and taking `1 / inv_duration` seconds has come. A
-// clock that wrapped since the start (Bevy wraps `globals.time` hourly) ends it.
-fn morph_progress(start: f32, inv_duration: f32) -> f32 {
-    let elapsed = globals.time - start;
-    if elapsed < 0.0 || inv_duration <= 0.0 {
-        return 1.0;
-    }
-    return clamp(elapsed * inv_duration, 0.0, 1.0);
-}
-
 @vertex
 fn vertex(vertex_in: Vertex) -> VertexOutput {
     var out: VertexOutput;
     var vertex = vertex_in;
 
 #ifdef ASLOD_GEOMORPH
-    let t = morph_progress(vertex.morph_from.w, vertex.morph_normal_from.w);
-    if t < 1.0 {
+    let t = geomorph::progress(globals.time, vertex.morph_from.w, vertex.morph_normal_from.w);
 #ifdef VERTEX_POSITIONS
-        vertex.position = vertex.morph_from.xyz + (vertex.position - vertex.morph_from.xyz) * t;
+    vertex.position = geomorph::position(vertex.morph_from.xyz, vertex.position, t);
 #endif
 #ifdef VERTEX_NORMALS
-        let n = mix(vertex.morph_normal_from.xyz, vertex.normal, t);
-        if dot(n, n) > 1e-12 {
-            vertex.normal = normalize(n);
-        }
+    vertex.normal = geomorph::normal(vertex.morph_normal_from.xyz, vertex.normal, t);
 #endif
-    }
 #endif
 
     let mesh_world_from_local = mesh_functions::get_world_from_local(vertex_in.instance_index);

@@ -8,6 +8,7 @@
     view_transformations::position_world_to_clip,
 }
 #import bevy_render::globals::Globals
+#import bevy_aslod::geomorph
 
 // The prepass view bind group has the globals at binding 1.
 @group(0) @binding(1) var<uniform> prepass_globals: Globals;
@@ -42,24 +43,14 @@ struct Vertex {
 #endif
 }
 
-// How far a morph has come at `time` (see `geomorph.wgsl`).
-fn morph_progress(time: f32, start: f32, inv_duration: f32) -> f32 {
-    let elapsed = time - start;
-    if elapsed < 0.0 || inv_duration <= 0.0 {
-        return 1.0;
-    }
-    return clamp(elapsed * inv_duration, 0.0, 1.0);
-}
-
 // Where the vertex is drawn at `time`.
 fn morph_position(vertex: Vertex, time: f32) -> vec3<f32> {
 #ifdef ASLOD_GEOMORPH
-    let t = morph_progress(time, vertex.morph_from.w, vertex.morph_normal_from.w);
-    if t < 1.0 {
-        return vertex.morph_from.xyz + (vertex.position - vertex.morph_from.xyz) * t;
-    }
-#endif
+    let t = geomorph::progress(time, vertex.morph_from.w, vertex.morph_normal_from.w);
+    return geomorph::position(vertex.morph_from.xyz, vertex.position, t);
+#else
     return vertex.position;
+#endif
 }
 
 @vertex
@@ -70,11 +61,8 @@ fn vertex(vertex_in: Vertex) -> VertexOutput {
 #ifdef ASLOD_GEOMORPH
 #ifdef NORMAL_PREPASS_OR_DEFERRED_PREPASS
 #ifdef VERTEX_NORMALS
-    let t = morph_progress(prepass_globals.time, vertex.morph_from.w, vertex.morph_normal_from.w);
-    let n = mix(vertex.morph_normal_from.xyz, vertex.normal, t);
-    if t < 1.0 && dot(n, n) > 1e-12 {
-        vertex.normal = normalize(n);
-    }
+    let t = geomorph::progress(prepass_globals.time, vertex.morph_from.w, vertex.morph_normal_from.w);
+    vertex.normal = geomorph::normal(vertex.morph_normal_from.xyz, vertex.normal, t);
 #endif
 #endif
 #endif
