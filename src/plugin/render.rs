@@ -1,5 +1,6 @@
-//! Handing level changes to Bevy's renderer: a changed region costs its index data, and a
-//! skinned region the vertices `Deform` blended, and nothing else.
+//! Handing level changes to Bevy's renderer: a changed region costs its index data, a
+//! skinned region the vertices `Deform` blended, a geomorph the vertices it moves, and
+//! nothing else.
 //!
 //! Changing a mesh through `Assets::<Mesh>::get_mut` raises `AssetEvent::Modified`, and Bevy
 //! then clones the whole mesh into the render world and writes all of its vertices and
@@ -14,7 +15,7 @@
 //!   and the main world marks the region entity's `Aabb` changed, so Bevy rebuilds that
 //!   instance's `MeshInputUniform` from the new slice (GPU preprocessing reads the index range
 //!   from there);
-//! - vertex data (skinned regions): the blended run of vertices is written in place into the
+//! - vertex data (skinned regions, geomorphs): the run of vertices is written in place into the
 //!   mesh's vertex slice, interleaved as Bevy packs it;
 //! - the frame's bytes go to the GPU in one staging write, then one copy per run of
 //!   destinations that follow each other, in one submission before the frame's draws.
@@ -176,7 +177,9 @@ pub struct RegionUploadStats {
     pub write_ms: f64,
     /// Index bytes written.
     pub index_bytes: u64,
-    /// Vertex bytes written (blended vertices of skinned regions).
+    /// Vertex bytes written (blended vertices of skinned regions, and the vertices of
+    /// geomorphs: where a morph starts with [`GeomorphMaterial`](super::GeomorphMaterial),
+    /// every moving vertex each frame without it).
     pub vertex_bytes: u64,
     /// Region meshes whose index buffer was replaced.
     pub index_writes: u32,

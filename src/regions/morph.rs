@@ -484,7 +484,8 @@ impl Geomorphs {
 
     /// Per region, the run of its local vertices (first and last) that a morph started or
     /// restarted on since the last call: what a GPU copy of [`vertex_morph`](Self::vertex_morph)
-    /// must take again. `None` for a region with none.
+    /// must take again. `None` for a region with none. (Positions are noted until taken, at
+    /// most once each.)
     ///
     /// # Panics
     /// When `mesh` is not this instance's mesh.
