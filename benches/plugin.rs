@@ -1,5 +1,7 @@
 //! The plugin's per-frame CPU cost without rendering: 1,000 models × 16 regions under
-//! P = 1,000,000, the camera moving. Prints a table of Allocate and SelectLod + Upload times.
+//! P = 1,000,000, the camera moving. Prints a table of Allocate and SelectLod + Upload times:
+//! with hysteresis ε = 0 and 8, and with `Geomorph(0.25)` on every model (ε = 0; without a
+//! renderer, so the moving regions' vertices are written from the CPU).
 //!
 //! `cargo bench --bench plugin`
 
@@ -10,7 +12,9 @@ mod models;
 mod scene;
 
 use bevy::prelude::*;
-use bevy_aslod::plugin::{AslodPlugin, AslodStats, AslodViewport, MultiresMesh};
+use bevy_aslod::plugin::{
+    AslodPlugin, AslodStats, AslodViewport, Geomorph, MultiresMesh, MultiresModel,
+};
 use bevy_aslod::regions::{GridPlane, Partition};
 use std::time::Instant;
 
@@ -25,14 +29,14 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 fn main() {
     // ε = 0 follows every target; ε = 8 lets regions keep their level through small changes.
-    for hysteresis in [0, 8] {
-        run(hysteresis);
+    for (hysteresis, morph) in [(0, None), (8, None), (0, Some(0.25))] {
+        run(hysteresis, morph);
         println!();
     }
 }
 
 /// One run: build the scene, fly the camera, print the table.
-fn run(hysteresis: u32) {
+fn run(hysteresis: u32, morph: Option<f32>) {
     let mesh = scene::patch(33);
     let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
     let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
@@ -58,6 +62,16 @@ fn run(hysteresis: u32) {
         asset,
         (0..MODELS).map(|i| scene::model_position(i, side)),
     );
+    if let Some(seconds) = morph {
+        let models: Vec<Entity> = app
+            .world_mut()
+            .query_filtered::<Entity, With<MultiresModel>>()
+            .iter(app.world())
+            .collect();
+        for model in models {
+            app.world_mut().entity_mut(model).insert(Geomorph(seconds));
+        }
+    }
     let camera = app
         .world_mut()
         .spawn((
@@ -114,8 +128,9 @@ fn run(hysteresis: u32) {
         v.sort_by(f64::total_cmp);
     }
     println!(
-        "bevy_aslod plugin: {MODELS} models x {regions} regions = {} region instances, P = {BUDGET}, hysteresis {hysteresis}, {FRAMES} frames, {}",
+        "bevy_aslod plugin: {MODELS} models x {regions} regions = {} region instances, P = {BUDGET}, hysteresis {hysteresis}, geomorphs {}, {FRAMES} frames, {}",
         MODELS * regions,
+        morph.map_or("off".to_string(), |s| format!("{s} s")),
         common::compute_threads()
     );
     println!("| step | median ms | p90 ms | max ms |");

@@ -119,6 +119,10 @@ where
         if !app.is_plugin_added::<super::MultiresMaterialPlugin<M<B>>>() {
             app.add_plugins(super::MultiresMaterialPlugin::<M<B>>::default());
         }
+        if !app.world().contains_resource::<ShadersEmbedded>() {
+            app.init_resource::<ShadersEmbedded>();
+            embed_shaders(app);
+        }
         app.register_type::<GpuGeomorph>().add_systems(
             PostUpdate,
             mark_gpu_models::<B>.in_set(super::AslodSystems::Spawn),
@@ -126,8 +130,13 @@ where
     }
 }
 
-/// Embeds the shaders (once, whichever plugin comes first).
-pub(super) fn embed_shaders(app: &mut App) {
+/// The geomorph shaders are embedded (by the first [`GeomorphMaterialPlugin`]).
+#[derive(Resource, Default)]
+struct ShadersEmbedded;
+
+/// Embeds the shaders (an app that draws materials only: the shader library is a
+/// `Handle<Shader>`).
+fn embed_shaders(app: &mut App) {
     load_shader_library!(app, "geomorph_common.wgsl");
     embedded_asset!(app, "geomorph.wgsl");
     embedded_asset!(app, "geomorph_prepass.wgsl");

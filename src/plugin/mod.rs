@@ -160,7 +160,6 @@ impl Plugin for AslodPlugin {
             .add_observer(systems::remove_region_meshes);
         diagnostics::register(app);
         systems::configure(app);
-        geomorph::embed_shaders(app);
         if !app.is_plugin_added::<MultiresMaterialPlugin<StandardMaterial>>() {
             app.add_plugins(MultiresMaterialPlugin::<StandardMaterial>::default());
         }
