@@ -42,6 +42,31 @@ pub struct GeomorphExtension {}
 
 /// `StandardMaterial` with geomorphs on the GPU: give it to a [`MultiresModel`] with a
 /// [`Geomorph`](super::Geomorph) (the `base` is the `StandardMaterial` it would have had).
+///
+/// ```
+/// use bevy::prelude::*;
+/// use bevy_aslod::plugin::{Geomorph, GeomorphMaterial, MultiresMesh, MultiresModel};
+///
+/// fn spawn_terrain(
+///     commands: &mut Commands,
+///     materials: &mut Assets<GeomorphMaterial>,
+///     asset: Handle<MultiresMesh>,
+/// ) -> Entity {
+///     let material = materials.add(GeomorphMaterial {
+///         base: StandardMaterial::from_color(Color::srgb(0.6, 0.55, 0.5)),
+///         extension: default(),
+///     });
+///     commands
+///         .spawn((MultiresModel(asset), Geomorph::default(), MeshMaterial3d(material)))
+///         .id()
+/// }
+/// # let mut world = World::new();
+/// # let mut materials = Assets::<GeomorphMaterial>::default();
+/// # let mut queue = bevy::ecs::world::CommandQueue::default();
+/// # let model = spawn_terrain(&mut Commands::new(&mut queue, &world), &mut materials, Handle::default());
+/// # queue.apply(&mut world);
+/// # assert_eq!(world.get::<Geomorph>(model), Some(&Geomorph(0.25)));
+/// ```
 pub type GeomorphMaterial = ExtendedMaterial<StandardMaterial, GeomorphExtension>;
 
 const SHADER: &str = "embedded://bevy_aslod/plugin/geomorph.wgsl";
