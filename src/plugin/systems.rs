@@ -1277,7 +1277,10 @@ fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
     let Some(morph) = &mut instance.morph else {
         return;
     };
-    if morph.gpu && !morph.attributes {
+    // The frame the meshes change layout, Bevy uploads them whole (with what is written
+    // below): no vertex run goes to their old allocations.
+    let relayout = morph.gpu && !morph.attributes;
+    if relayout {
         for &id in &instance.mesh_ids {
             if let Some(mesh) = target.meshes.get_mut(id) {
                 add_morph_attributes(mesh.into_inner());
@@ -1320,7 +1323,7 @@ fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
             };
             if values.is_empty() {
                 // Written from the CPU: the morph attributes say "at rest".
-                for (slot, p) in slots[first..].iter_mut().zip(&morph.positions[r]) {
+                for (slot, p) in slots.iter_mut().skip(first).zip(&morph.positions[r]) {
                     *slot = p.extend(0.0).to_array();
                 }
             } else if let Some(slots) = slots.get_mut(first..first + values.len()) {
@@ -1329,7 +1332,7 @@ fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
                 written = false;
             }
         }
-        if n > 0 && written {
+        if n > 0 && written && !relayout {
             target.vertices_changed(id, &[first as u32, (first + n) as u32 - 1], false);
         }
     }
