@@ -325,8 +325,9 @@ pub struct MultiresModel(pub Handle<MultiresMesh>);
 /// them (a lower [`PolygonBudget`] is met once the coarsening regions arrive, after the
 /// morph time). Borders stay closed: a vertex moves the same way in every region that draws
 /// it. `0` (or no component) changes levels at once; [`Default`] is
-/// [`DEFAULT_SECONDS`](Self::DEFAULT_SECONDS). A [`MultiresScene`] with one gives it to
-/// every model it makes.
+/// [`DEFAULT_SECONDS`](Self::DEFAULT_SECONDS). A model's first levels (when it is new, or
+/// gets the component) are taken at once. A [`MultiresScene`] with one gives it to every
+/// model it makes.
 ///
 /// Unskinned models with a [`GeomorphMaterial`] (or another material with [`GpuGeomorph`])
 /// are interpolated by the vertex shaders: a vertex is written once, when a morph starts
@@ -409,6 +410,8 @@ struct MorphState {
     morphs: crate::regions::Geomorphs,
     /// The time `SelectLod` applied the morphs at (`Deform` blends skinned ones at it).
     now: f32,
+    /// An allocation was applied (the first one is taken at once).
+    allocated: bool,
     /// The material interpolates on the GPU ([`GpuGeomorph`]): a vertex is written when a
     /// morph starts on it, with the morph attributes.
     gpu: bool,

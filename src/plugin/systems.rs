@@ -885,17 +885,27 @@ fn select_lod(
                 continue;
             }
             let instance = &mut **instance;
+            let allocated = run.is_some();
             if let Some(run) = run {
                 instance.targets.copy_from_slice(run);
             }
             let shown = if let Some(morph) = &mut instance.morph {
                 // Under the model's own allocation: coarsening regions keep their old
                 // triangles and refinements take what is free, so the model never shows more
-                // than it was given.
+                // than it was given. The first allocation is taken at once: a new model's
+                // caches start at full detail, which it would keep counting for the morph
+                // time.
                 let budget: u64 = instance.targets.iter().map(|&t| u64::from(t)).sum();
                 let (regions, caches) = (&instance.regions, &mut instance.caches);
                 let m = &mut morph.morphs;
-                m.apply_allocation(regions, caches, &instance.targets, budget as usize, now);
+                if morph.allocated {
+                    m.apply_allocation(regions, caches, &instance.targets, budget as usize, now);
+                } else if allocated {
+                    for (r, &target) in instance.targets.iter().enumerate() {
+                        caches.set_triangle_count(regions, r, target as usize);
+                    }
+                    morph.allocated = true;
+                }
                 m.update(regions, caches, now);
                 morph.now = now;
                 // Skinned models are written in `Deform`, from the morphs (which writes a
@@ -962,6 +972,7 @@ fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32, gpu: bool) {
             let n = instance.regions.regions().len();
             instance.morph = Some(MorphState {
                 morphs: crate::regions::Geomorphs::new(&instance.regions, seconds),
+                allocated: false,
                 now: 0.0,
                 gpu,
                 attributes: false,
