@@ -412,6 +412,11 @@ struct MorphState {
     now: f32,
     /// An allocation was applied (the first one is taken at once).
     allocated: bool,
+    /// `SelectLod`'s first pass left this model's refinements (`refine`: region, triangles
+    /// wanted) to its second, which applies `grants` (region, triangles granted).
+    second_pass: bool,
+    refine: Vec<(u32, u32)>,
+    grants: Vec<(u32, u32)>,
     /// The material interpolates on the GPU ([`GpuGeomorph`]): a vertex is written when a
     /// morph starts on it, with the morph attributes.
     gpu: bool,

@@ -850,8 +850,11 @@ fn select_lod(
     // The models this frame's allocation covered take their targets from its counts.
     let fresh = scratch.allocated;
     let counts = &scratch.counts;
+    // First pass: every model's caches to its targets, except geomorph refinements, which
+    // wait for the second (a coarsening region keeps its old triangles for the morph time,
+    // so what is free is known only once every model has started its coarsenings).
     let totals = par_chunks(&mut instances, |chunk| {
-        let mut triangles = 0u64;
+        let mut sums = Sums::default();
         for instance in chunk {
             let InputRun { allocation, first } = instance.input_run;
             if let Some(fine) = &mut instance.fine {
@@ -871,7 +874,7 @@ fn select_lod(
                 } as u64;
                 instance.shown = shown;
                 instance.settled = false;
-                triangles += shown;
+                sums.add(shown, shown);
                 continue;
             }
             let run = counts
@@ -881,7 +884,7 @@ fn select_lod(
             // out of view, whose regions all sit at their minimum, and far ones).
             let same = run.is_none_or(|run| run == instance.targets.as_slice());
             if same && instance.settled {
-                triangles += instance.shown;
+                sums.add(instance.shown, instance.shown);
                 continue;
             }
             let instance = &mut **instance;
@@ -889,75 +892,161 @@ fn select_lod(
             if let Some(run) = run {
                 instance.targets.copy_from_slice(run);
             }
-            let shown = if let Some(morph) = &mut instance.morph {
-                // Under the model's own allocation: coarsening regions keep their old
-                // triangles and refinements take what is free, so the model never shows more
-                // than it was given. The first allocation is taken at once: a new model's
-                // caches start at full detail, which it would keep counting for the morph
-                // time.
-                let budget: u64 = instance.targets.iter().map(|&t| u64::from(t)).sum();
+            let target: u64 = instance.targets.iter().map(|&t| u64::from(t)).sum();
+            if let Some(morph) = &mut instance.morph
+                && morph.allocated
+            {
                 let (regions, caches) = (&instance.regions, &mut instance.caches);
+                let targets = &instance.targets;
                 let m = &mut morph.morphs;
-                if morph.allocated {
-                    m.apply_allocation(regions, caches, &instance.targets, budget as usize, now);
-                } else if allocated {
-                    for (r, &target) in instance.targets.iter().enumerate() {
-                        caches.set_triangle_count(regions, r, target as usize);
-                    }
-                    morph.allocated = true;
-                }
-                m.update(regions, caches, now);
-                morph.now = now;
-                // Skinned models are written in `Deform`, from the morphs (which writes a
-                // region once more at rest after its morph).
-                if instance.skin.is_none() {
-                    morph.stage(regions, clock);
-                } else {
-                    morph.moved.fill(false);
-                }
-                caches.total_triangles() as u64
-            } else {
-                let mut shown = 0;
-                for (r, &target) in instance.targets.iter().enumerate() {
-                    shown +=
-                        instance
-                            .caches
-                            .set_triangle_count(&instance.regions, r, target as usize)
-                            as u64;
-                }
-                shown
-            };
-            instance.shown = shown;
-            triangles += shown;
-            // Skinned models write their buffers in `Deform`, and morphing ones move: never
-            // skipped here.
-            instance.settled = instance.skin.is_none()
-                && instance
-                    .morph
-                    .as_ref()
-                    .is_none_or(|m| !m.morphs.is_morphing());
-            if instance.skin.is_none() {
-                // Only the dirty regions' staging slots are touched.
-                for r in 0..instance.staged.len() {
-                    if !instance.caches.is_dirty(r) {
-                        continue;
-                    }
-                    let StagedIndices { ready, indices } = &mut instance.staged[r];
-                    let (caches, regions) = (&mut instance.caches, &instance.regions);
-                    match indices {
-                        Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
-                        Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
-                    };
-                    if !std::mem::replace(ready, true) {
-                        instance.ready.push(r as u32);
-                    }
-                }
+                m.begin_allocation(regions, caches, targets, now, &mut morph.refine);
+                morph.second_pass = true;
+                let shown = caches.total_triangles() as u64;
+                sums.add(shown, target);
+                sums.deferred += shown;
+                continue;
             }
+            let mut shown = 0;
+            for (r, &target) in instance.targets.iter().enumerate() {
+                shown += instance
+                    .caches
+                    .set_triangle_count(&instance.regions, r, target as usize)
+                    as u64;
+            }
+            // A new model's caches start at full detail: its first allocation is taken at
+            // once, under geomorphs too (it would count full detail for the morph time).
+            if let Some(morph) = &mut instance.morph {
+                morph.allocated |= allocated;
+                let skinned = instance.skin.is_some();
+                finish_morphs(
+                    morph,
+                    &instance.regions,
+                    &mut instance.caches,
+                    skinned,
+                    clock,
+                );
+            }
+            instance.shown = shown;
+            sums.add(shown, target);
+            finish_select(instance);
+        }
+        sums
+    });
+    let sums = totals.into_iter().fold(Sums::default(), |a, b| Sums {
+        shown: a.shown + b.shown,
+        target: a.target + b.target,
+        deferred: a.deferred + b.deferred,
+    });
+    // What the models asked for and do not show yet, refinements under geomorphs take, largest
+    // first: the triangles shown never exceed what the allocation gave all models together.
+    let mut free = sums.target.saturating_sub(sums.shown);
+    let mut wanted: Vec<(u32, u32, u32)> = Vec::new();
+    for (i, instance) in instances.iter().enumerate() {
+        if let Some(morph) = &instance.morph
+            && morph.second_pass
+        {
+            wanted.extend(morph.refine.iter().map(|&(r, n)| (n, i as u32, r)));
+        }
+    }
+    wanted.sort_unstable_by(|a, b| b.cmp(a));
+    for (n, i, r) in wanted {
+        let grant = u64::from(n).min(free);
+        free -= grant;
+        if let Some(morph) = &mut instances[i as usize].morph {
+            morph.grants.push((r, grant as u32));
+        }
+    }
+    // Second pass: the geomorph models' refinements, morphs and index buffers.
+    let totals = par_chunks(&mut instances, |chunk| {
+        let mut triangles = 0u64;
+        for instance in chunk {
+            let instance = &mut **instance;
+            let Some(morph) = &mut instance.morph else {
+                continue;
+            };
+            if !std::mem::take(&mut morph.second_pass) {
+                continue;
+            }
+            let (regions, caches) = (&instance.regions, &mut instance.caches);
+            for (r, grant) in morph.grants.drain(..) {
+                morph
+                    .morphs
+                    .grant(regions, caches, r as usize, grant as usize, now);
+            }
+            finish_morphs(morph, regions, caches, instance.skin.is_some(), clock);
+            instance.shown = caches.total_triangles() as u64;
+            triangles += instance.shown;
+            finish_select(instance);
         }
         triangles
     });
-    stats.triangles = totals.into_iter().sum();
+    stats.triangles = sums.shown - sums.deferred + totals.into_iter().sum::<u64>();
     stats.update_ms = start.elapsed().as_secs_f64() * 1e3;
+}
+
+/// Triangles over a pass of `SelectLod`: shown, asked for, and shown by the models whose
+/// refinements wait for the second pass.
+#[derive(Clone, Copy, Debug, Default)]
+struct Sums {
+    shown: u64,
+    target: u64,
+    deferred: u64,
+}
+
+impl Sums {
+    fn add(&mut self, shown: u64, target: u64) {
+        self.shown += shown;
+        self.target += target;
+    }
+}
+
+/// After a geomorph model's caches took this frame's levels: ends what arrived, and stages
+/// the vertices `Upload` writes (skinned models are written in `Deform`, from the morphs,
+/// which writes a region once more at rest after its morph).
+fn finish_morphs(
+    morph: &mut MorphState,
+    regions: &crate::regions::RegionMesh,
+    caches: &mut crate::regions::RegionCaches,
+    skinned: bool,
+    clock: Clock,
+) {
+    morph.morphs.update(regions, caches, clock.now);
+    morph.now = clock.now;
+    if skinned {
+        morph.moved.fill(false);
+    } else {
+        morph.stage(regions, clock);
+    }
+}
+
+/// After a model's caches took this frame's levels: whether it is settled, and (unskinned)
+/// the index buffers of its dirty regions for `Upload`.
+fn finish_select(instance: &mut MultiresInstance) {
+    // Skinned models write their buffers in `Deform`, and morphing ones move: never
+    // skipped.
+    instance.settled = instance.skin.is_none()
+        && instance
+            .morph
+            .as_ref()
+            .is_none_or(|m| !m.morphs.is_morphing());
+    if instance.skin.is_some() {
+        return;
+    }
+    // Only the dirty regions' staging slots are touched.
+    for r in 0..instance.staged.len() {
+        if !instance.caches.is_dirty(r) {
+            continue;
+        }
+        let StagedIndices { ready, indices } = &mut instance.staged[r];
+        let (caches, regions) = (&mut instance.caches, &instance.regions);
+        match indices {
+            Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
+            Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
+        };
+        if !std::mem::replace(ready, true) {
+            instance.ready.push(r as u32);
+        }
+    }
 }
 
 /// Starts or ends an unskinned region model's geomorphs as its [`Geomorph`] says (ending
@@ -973,6 +1062,9 @@ fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32, gpu: bool) {
             instance.morph = Some(MorphState {
                 morphs: crate::regions::Geomorphs::new(&instance.regions, seconds),
                 allocated: false,
+                second_pass: false,
+                refine: Vec::new(),
+                grants: Vec::new(),
                 now: 0.0,
                 gpu,
                 attributes: false,

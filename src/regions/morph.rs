@@ -348,8 +348,34 @@ impl Geomorphs {
         budget: usize,
         now: f32,
     ) -> usize {
-        assert_eq!(counts.len(), self.pending.len(), "one count per region");
         let mut refine = Vec::new();
+        self.begin_allocation(mesh, caches, counts, now, &mut refine);
+        let mut total = caches.total_triangles();
+        for (r, wanted) in refine {
+            let grant = (wanted as usize).min(budget.saturating_sub(total));
+            total += self.grant(mesh, caches, r as usize, grant, now);
+        }
+        total
+    }
+
+    /// The first half of [`apply_allocation`](Self::apply_allocation), for a budget shared
+    /// with other instances: coarsens the regions asked for fewer triangles, turns back the
+    /// coarsening ones asked for at least what they show, and puts the refinements wanted in
+    /// `refine` (region, triangles more than it shows), largest first. Grant them with
+    /// [`grant`](Self::grant) out of what is free.
+    ///
+    /// # Panics
+    /// When `counts` does not have one entry per region, or `mesh` is not the caches' mesh.
+    pub fn begin_allocation(
+        &mut self,
+        mesh: &RegionMesh,
+        caches: &mut RegionCaches,
+        counts: &[u32],
+        now: f32,
+        refine: &mut Vec<(u32, u32)>,
+    ) {
+        assert_eq!(counts.len(), self.pending.len(), "one count per region");
+        refine.clear();
         for (r, &count) in counts.iter().enumerate() {
             let (count, shown) = (count as usize, caches.triangle_count(r));
             if self.duration == 0.0 || count < shown {
@@ -357,21 +383,34 @@ impl Geomorphs {
             } else if self.is_coarsening(r) {
                 self.set_triangle_count(mesh, caches, r, shown, now);
             }
-            if count > caches.triangle_count(r) {
-                refine.push(r);
-            }
-        }
-        let mut total = caches.total_triangles();
-        refine.sort_by_key(|&r| std::cmp::Reverse(counts[r] as usize - caches.triangle_count(r)));
-        for r in refine {
             let shown = caches.triangle_count(r);
-            let grant = (counts[r] as usize - shown).min(budget.saturating_sub(total));
-            if grant > 0 {
-                let reached = self.set_triangle_count(mesh, caches, r, shown + grant, now);
-                total = total + reached - shown;
+            if count > shown {
+                refine.push((r as u32, (count - shown) as u32));
             }
         }
-        total
+        refine.sort_by_key(|&(_, wanted)| std::cmp::Reverse(wanted));
+    }
+
+    /// Refines region `region` by at most `triangles` more than it shows (a refinement
+    /// [`begin_allocation`](Self::begin_allocation) found, granted out of a budget); returns
+    /// the triangles it added.
+    ///
+    /// # Panics
+    /// When `region` is out of range or `mesh` is not the caches' mesh.
+    pub fn grant(
+        &mut self,
+        mesh: &RegionMesh,
+        caches: &mut RegionCaches,
+        region: usize,
+        triangles: usize,
+        now: f32,
+    ) -> usize {
+        if triangles == 0 {
+            return 0;
+        }
+        let shown = caches.triangle_count(region);
+        let reached = self.set_triangle_count(mesh, caches, region, shown + triangles, now);
+        reached.saturating_sub(shown)
     }
 
     /// Ends what has arrived by `now`: coarsenings take their level, finished morphs go.

@@ -170,44 +170,47 @@ fn region_meshes(app: &App, model: Entity) -> Vec<Mesh> {
 }
 
 /// The same cut drawn by a model whose material interpolates on the GPU and one written
-/// from the CPU: every vertex a triangle uses is drawn at the same place in every frame,
-/// and the GPU model's vertices are written only in the frames a morph starts.
+/// from the CPU (each in an app of its own: two models would share the budget): every
+/// vertex a triangle uses is drawn at the same place in every frame, and the GPU model's
+/// vertices are written only in the frames a morph starts.
 #[test]
 fn gpu_geomorphs_draw_what_cpu_geomorphs_write_and_write_less() {
-    let mut app = app(BUDGET);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
-        1.0 / 60.0,
-    )));
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
-    let [cpu, gpu] = [false, true].map(|on_gpu| {
-        let mut model = app.world_mut().spawn((
-            MultiresModel(handle.clone()),
-            Geomorph(T),
-            Transform::default(),
-        ));
+    let asset = cow();
+    let mut apps = [false, true].map(|on_gpu| {
+        let mut app = app(BUDGET);
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
+            1.0 / 60.0,
+        )));
+        let handle = app
+            .world_mut()
+            .resource_mut::<Assets<MultiresMesh>>()
+            .add(asset.clone());
+        let mut model =
+            app.world_mut()
+                .spawn((MultiresModel(handle), Geomorph(T), Transform::default()));
         if on_gpu {
             model.insert(GpuGeomorph);
         }
-        model.id()
+        let model = model.id();
+        let camera = app
+            .world_mut()
+            .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 40.0)))
+            .id();
+        for _ in 0..60 {
+            app.update();
+        }
+        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+            Transform::from_xyz(0.4, 0.1, 0.9).looking_at(Vec3::new(0.3, 0.0, 0.0), Vec3::Y);
+        (app, model)
     });
-    let camera = app
-        .world_mut()
-        .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 40.0)))
-        .id();
-    for _ in 0..60 {
-        app.update();
-    }
-    *app.world_mut().get_mut::<Transform>(camera).unwrap() =
-        Transform::from_xyz(0.4, 0.1, 0.9).looking_at(Vec3::new(0.3, 0.0, 0.0), Vec3::Y);
+    let [(cpu_app, cpu), (gpu_app, gpu)] = &mut apps;
     let (mut cpu_writes, mut gpu_writes) = (0, 0);
-    let (mut last_cpu, mut last_gpu) = (region_meshes(&app, cpu), region_meshes(&app, gpu));
+    let (mut last_cpu, mut last_gpu) = (region_meshes(cpu_app, *cpu), region_meshes(gpu_app, *gpu));
     for frame in 0..40 {
-        app.update();
-        let time = app.world().resource::<Time>().elapsed_secs_wrapped();
-        let (now_cpu, now_gpu) = (region_meshes(&app, cpu), region_meshes(&app, gpu));
+        cpu_app.update();
+        gpu_app.update();
+        let time = gpu_app.world().resource::<Time>().elapsed_secs_wrapped();
+        let (now_cpu, now_gpu) = (region_meshes(cpu_app, *cpu), region_meshes(gpu_app, *gpu));
         for (r, (c, g)) in now_cpu.iter().zip(&now_gpu).enumerate() {
             let Some(VertexAttributeValues::Float32x3(written)) =
                 c.attribute(Mesh::ATTRIBUTE_POSITION)
@@ -247,4 +250,62 @@ fn gpu_geomorphs_draw_what_cpu_geomorphs_write_and_write_less() {
         gpu_writes * 3 <= cpu_writes,
         "the GPU model wrote in {gpu_writes} frames, the CPU model in {cpu_writes}"
     );
+}
+
+/// Several models under one budget: when the camera cuts from one to another, the far one's
+/// regions coarsen while the near one's refine, and the refinements wait for the triangles
+/// the coarsenings free, so the models together never show more than the budget.
+#[test]
+fn models_sharing_the_budget_never_show_more_than_it_during_morphs() {
+    let mut app = app(BUDGET);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
+        1.0 / 60.0,
+    )));
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(cow());
+    for x in [-3.0, 0.0, 3.0] {
+        app.world_mut().spawn((
+            MultiresModel(handle.clone()),
+            Geomorph(T),
+            Transform::from_xyz(x, 0.0, 0.0),
+        ));
+    }
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            Transform::from_xyz(-3.0, 0.0, 1.2).looking_at(Vec3::new(-3.0, 0.0, 0.0), Vec3::Y),
+        ))
+        .id();
+    let (mut changes, mut last) = (0, 0);
+    for frame in 0..120 {
+        if frame % 40 == 20 {
+            let x = [3.0, 0.0, -3.0][frame / 40];
+            *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+                Transform::from_xyz(x, 0.0, 1.2).looking_at(Vec3::new(x, 0.0, 0.0), Vec3::Y);
+        }
+        app.update();
+        let shown = app.world().resource::<AslodStats>().triangles;
+        assert!(
+            shown <= u64::from(BUDGET),
+            "frame {frame}: {shown} triangles"
+        );
+        let instances: Vec<&MultiresInstance> = app
+            .world_mut()
+            .query::<&MultiresInstance>()
+            .iter(app.world())
+            .collect();
+        let total: usize = instances.iter().map(|i| i.caches().total_triangles()).sum();
+        assert_eq!(
+            total as u64, shown,
+            "frame {frame}: the stats count what is shown"
+        );
+        changes += usize::from(frame >= 20 && shown != last);
+        last = shown;
+    }
+    // Each cut: the coarsenings start (their triangles still shown), land a morph time later,
+    // and only then the refinements that waited for them take the triangles.
+    assert!(changes >= 6, "the shown count changed in {changes} frames");
 }
