@@ -4,7 +4,9 @@
 use super::{RegionCaches, RegionMesh};
 use crate::skin::{Buckets, buckets};
 use glam::Vec3;
-use std::collections::HashMap;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::Arc;
 
 /// Where a morphing position is heading.
@@ -118,10 +120,13 @@ pub struct Geomorphs {
     duration: f32,
     /// What a mesh's morphs are made of, shared by every instance of the mesh.
     tables: Arc<MorphTables>,
-    morphs: HashMap<u32, Morph>,
-    normal_morphs: HashMap<u32, NormalMorph>,
+    morphs: HashMap<u32, Morph, VertexHash>,
+    normal_morphs: HashMap<u32, NormalMorph, VertexHash>,
+    /// Morphs toward their own place by end time (as `f32` bits, which order non-negative
+    /// times), to end them when due; an entry whose morph restarted since is skipped.
+    ends: BinaryHeap<Reverse<(u32, u32)>>,
     pending: Vec<Option<Pending>>,
-    /// Per region: positions of its own in motion, as of the last [`update`](Self::update).
+    /// Per region: copies of positions in motion among its own vertices.
     moving: Vec<usize>,
     /// Positions whose morph started since the last
     /// [`take_restarted`](Self::take_restarted), each once (`marked`).
@@ -147,6 +152,8 @@ pub(crate) struct MorphTables {
     vertex_parent: Vec<(u32, u32)>,
     /// Per region: the triangle count of each level.
     counts: Vec<Vec<usize>>,
+    /// Per source vertex: its region.
+    region_of: Vec<u32>,
     positions: Vec<Vec3>,
     normals: Option<Vec<Vec3>>,
 }
@@ -164,8 +171,9 @@ impl Geomorphs {
         Self {
             duration: if duration > 0.0 { duration } else { 0.0 },
             tables,
-            morphs: HashMap::new(),
-            normal_morphs: HashMap::new(),
+            morphs: HashMap::default(),
+            normal_morphs: HashMap::default(),
+            ends: BinaryHeap::new(),
             pending: vec![None; regions],
             moving: vec![0; regions],
             restarted: Vec::new(),
@@ -211,6 +219,7 @@ impl MorphTables {
             parent,
             vertex_parent,
             counts,
+            region_of: mesh.partition().region_of().to_vec(),
             positions: source.positions,
             normals: source.normals,
         }
@@ -430,35 +439,31 @@ impl Geomorphs {
             let shown = caches.level(region);
             caches.set_triangle_count(mesh, region, self.tables.counts[region][p.level]);
             for step in shown..p.level {
-                for &q in &self.tables.removed_at[region][step] {
-                    self.morphs.remove(&q);
-                    for &g in self.tables.copies.get(q as usize) {
-                        self.normal_morphs.remove(&g);
-                    }
+                for i in 0..self.tables.removed_at[region][step].len() {
+                    self.end(self.tables.removed_at[region][step][i]);
                 }
             }
         }
+        // Appearing and returning positions end at their time.
         let duration = self.duration;
-        let position_of = &self.tables.position_of;
-        self.morphs
-            .retain(|_, m| m.toward != Toward::Own || now < m.start + duration);
-        let morphs = &self.morphs;
-        self.normal_morphs
-            .retain(|g, _| morphs.contains_key(&position_of[*g as usize]));
-        // A position's copies (seams, and vertices of skinned regions that meet in the bind
-        // pose) may lie in regions other than its first vertex's.
-        self.moving.fill(0);
-        let region_of = mesh.partition().region_of();
-        for &p in self.morphs.keys() {
-            for &g in self.tables.copies.get(p as usize) {
-                self.moving[region_of[g as usize] as usize] += 1;
+        while let Some(&Reverse((end, p))) = self.ends.peek() {
+            if now < f32::from_bits(end) {
+                break;
+            }
+            self.ends.pop();
+            let due = self
+                .morphs
+                .get(&p)
+                .is_some_and(|m| m.toward == Toward::Own && (m.start + duration).to_bits() == end);
+            if due {
+                self.end(p);
             }
         }
     }
 
     /// Whether region `region`'s vertices (its own, or its neighbours' that its border
-    /// triangles use) may be in motion, as of the last [`update`](Self::update): the regions
-    /// whose positions must be written again this frame.
+    /// triangles use) may be in motion: the regions whose positions must be written again
+    /// this frame.
     ///
     /// # Panics
     /// When `region` is out of range or `mesh` is not this instance's mesh.
@@ -647,12 +652,42 @@ impl Geomorphs {
 
     /// Puts morph `m` on position `p`, noted for [`take_restarted`](Self::take_restarted).
     fn start(&mut self, p: u32, m: Morph) {
-        self.morphs.insert(p, m);
+        if m.toward == Toward::Own {
+            let end = (m.start + self.duration).max(0.0);
+            self.ends.push(Reverse((end.to_bits(), p)));
+        }
+        if self.morphs.insert(p, m).is_none() {
+            self.count_moving(p, true);
+        }
         if self.marked.is_empty() {
             self.marked = vec![false; self.tables.positions.len()];
         }
         if !std::mem::replace(&mut self.marked[p as usize], true) {
             self.restarted.push(p);
+        }
+    }
+
+    /// Ends position `p`'s morph (and its copies' normals').
+    fn end(&mut self, p: u32) {
+        if self.morphs.remove(&p).is_some() {
+            self.count_moving(p, false);
+        }
+        for &g in self.tables.copies.get(p as usize) {
+            self.normal_morphs.remove(&g);
+        }
+    }
+
+    /// Counts position `p` in (or out of) the moving positions of the regions its copies
+    /// are in (seams, and vertices of skinned regions that meet in the bind pose, may lie in
+    /// other regions than its first vertex's).
+    fn count_moving(&mut self, p: u32, moving: bool) {
+        for &g in self.tables.copies.get(p as usize) {
+            let count = &mut self.moving[self.tables.region_of[g as usize] as usize];
+            *count = if moving {
+                *count + 1
+            } else {
+                count.saturating_sub(1)
+            };
         }
     }
 
@@ -720,3 +755,26 @@ fn follow(moves: &[(u32, u32)], mut at: u32, level: usize) -> u32 {
     }
     at
 }
+
+/// Hashes the vertex and position numbers the morph maps are keyed by (a multiplicative
+/// hash: the keys are dense `u32`s, and SipHash cost a tenth of a frame of morphs).
+#[derive(Clone, Copy, Debug, Default)]
+struct U32Hasher(u64);
+
+impl Hasher for U32Hasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        }
+    }
+
+    fn write_u32(&mut self, n: u32) {
+        self.0 = (u64::from(n) ^ self.0).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+}
+
+type VertexHash = BuildHasherDefault<U32Hasher>;
