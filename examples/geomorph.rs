@@ -158,7 +158,7 @@ fn run(args: &Args) -> Result<(), String> {
         for _ in 0..200 {
             step(&mut app);
             let shot = capture(&mut app, &target, &captured)?;
-            still = if varied(&shot) > 0.3 && difference(&shot, &last).0 == 0.0 {
+            still = if common::varied(&shot) > 0.3 && common::compare(&shot, &last).1 == 0.0 {
                 still + 1
             } else {
                 0
@@ -169,7 +169,7 @@ fn run(args: &Args) -> Result<(), String> {
             }
         }
         if still < 3 {
-            save(
+            common::save_image(
                 &last,
                 &args.out.join(format!("{}-not-ready.png", mode.key())),
             )?;
@@ -193,7 +193,7 @@ fn run(args: &Args) -> Result<(), String> {
         }
         if args.frames {
             for (i, f) in frames.iter().enumerate() {
-                save(f, &args.out.join(format!("{}-{i:03}.png", mode.key())))?;
+                common::save_image(f, &args.out.join(format!("{}-{i:03}.png", mode.key())))?;
             }
         }
         eprintln!(
@@ -213,7 +213,7 @@ fn run(args: &Args) -> Result<(), String> {
         .map(|(_, frames, _)| {
             frames
                 .windows(2)
-                .map(|w| difference(&w[0], &w[1]).0)
+                .map(|w| common::compare(&w[0], &w[1]).1)
                 .collect()
         })
         .collect();
@@ -221,7 +221,7 @@ fn run(args: &Args) -> Result<(), String> {
         .1
         .iter()
         .zip(&runs[2].1)
-        .map(|(a, b)| difference(a, b).0)
+        .map(|(a, b)| common::compare(a, b).1)
         .collect();
     let summary = |c: &[f64]| {
         let max = c.iter().copied().fold(0.0, f64::max);
@@ -380,46 +380,6 @@ fn capture(
         }
     }
     Err("a screenshot did not arrive within two minutes".into())
-}
-
-/// The share of pixels that differ by more than 2 of 255 in a channel, and the largest
-/// channel difference.
-fn difference(a: &Image, b: &Image) -> (f64, u8) {
-    let (Some(a), Some(b)) = (&a.data, &b.data) else {
-        return (1.0, 255);
-    };
-    if a.len() != b.len() {
-        return (1.0, 255);
-    }
-    let (mut differing, mut max) = (0usize, 0u8);
-    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
-        let d = pa[..3]
-            .iter()
-            .zip(&pb[..3])
-            .map(|(x, y)| x.abs_diff(*y))
-            .max()
-            .unwrap_or(0);
-        max = max.max(d);
-        differing += usize::from(d > 2);
-    }
-    (differing as f64 / (a.len() / 4) as f64, max)
-}
-
-/// The share of pixels unlike the first (the clear colour until the terrain is drawn).
-fn varied(image: &Image) -> f64 {
-    let Some(data) = &image.data else { return 0.0 };
-    let first = &data[..4];
-    data.chunks_exact(4).filter(|p| p != &first).count() as f64 / (data.len() / 4) as f64
-}
-
-fn save(image: &Image, path: &Path) -> Result<(), String> {
-    image
-        .clone()
-        .try_into_dynamic()
-        .map_err(|e| e.to_string())?
-        .to_rgb8()
-        .save(path)
-        .map_err(|e| format!("save {}: {e}", path.display()))
 }
 
 /// Per run, the share of pixels changed between consecutive frames.

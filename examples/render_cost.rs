@@ -630,17 +630,17 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
             app.update();
         }
         shots = capture(&mut app)?;
-        if shots.iter().all(|s| varied(s) > 0.2) {
+        if shots.iter().all(|s| common::varied(s) > 0.2) {
             break;
         }
     }
-    if !shots.iter().all(|s| varied(s) > 0.2) {
+    if !shots.iter().all(|s| common::varied(s) > 0.2) {
         for (i, shot) in shots.iter().enumerate() {
-            save(shot, &dir.join(format!("view{i}_blank.png")))?;
+            common::save_image(shot, &dir.join(format!("view{i}_blank.png")))?;
         }
         return Err(format!(
             "the scene was never drawn (fraction of pixels unlike the first: {:?}); see {}",
-            shots.iter().map(varied).collect::<Vec<_>>(),
+            shots.iter().map(common::varied).collect::<Vec<_>>(),
             dir.display()
         ));
     }
@@ -721,9 +721,9 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     let fresh = capture(&mut app)?;
     let mut diffs = Vec::new();
     for (i, (a, b)) in lod.iter().zip(&fresh).enumerate() {
-        save(a, &dir.join(format!("view{i}_lod.png")))?;
-        save(b, &dir.join(format!("view{i}_fresh.png")))?;
-        diffs.push(compare(a, b));
+        common::save_image(a, &dir.join(format!("view{i}_lod.png")))?;
+        common::save_image(b, &dir.join(format!("view{i}_fresh.png")))?;
+        diffs.push(common::compare(a, b));
     }
     let json = serde_json::json!({
         "gpu_building": !cpu_building,
@@ -736,7 +736,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
             "max_channel_difference": max,
             "fraction_differing": frac,
         })).collect::<Vec<_>>(),
-        "varied": lod.iter().map(varied).collect::<Vec<_>>(),
+        "varied": lod.iter().map(common::varied).collect::<Vec<_>>(),
     });
     std::fs::write(
         dir.join("check.json"),
@@ -745,44 +745,4 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     .map_err(|e| format!("write check.json: {e}"))?;
     println!("{json}");
     Ok(())
-}
-
-/// The fraction of pixels that differ from the first one.
-fn varied(image: &Image) -> f64 {
-    let Some(data) = &image.data else { return 0.0 };
-    let first = &data[..4];
-    data.chunks_exact(4).filter(|p| p != &first).count() as f64 / (data.len() / 4) as f64
-}
-
-/// The largest channel difference, and the fraction of pixels differing by more than 2.
-fn compare(a: &Image, b: &Image) -> (u8, f64) {
-    let (Some(a), Some(b)) = (&a.data, &b.data) else {
-        return (255, 1.0);
-    };
-    if a.len() != b.len() {
-        return (255, 1.0);
-    }
-    let mut max = 0;
-    let mut differing = 0;
-    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
-        let d = pa
-            .iter()
-            .zip(pb)
-            .map(|(x, y)| x.abs_diff(*y))
-            .max()
-            .unwrap_or(0);
-        max = max.max(d);
-        differing += usize::from(d > 2);
-    }
-    (max, differing as f64 / (a.len() / 4) as f64)
-}
-
-fn save(image: &Image, path: &Path) -> Result<(), String> {
-    image
-        .clone()
-        .try_into_dynamic()
-        .map_err(|e| e.to_string())?
-        .to_rgb8()
-        .save(path)
-        .map_err(|e| format!("save {}: {e}", path.display()))
 }

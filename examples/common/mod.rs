@@ -253,3 +253,46 @@ pub fn save_capture(captured: &ScreenshotCaptured, path: &Path) -> bool {
         }
     }
 }
+
+/// The share of an image's pixels that differ from its first one (the clear colour, in a
+/// frame drawn before the pipelines are ready).
+pub fn varied(image: &Image) -> f64 {
+    let Some(data) = &image.data else { return 0.0 };
+    let first = &data[..4];
+    data.chunks_exact(4).filter(|p| p != &first).count() as f64 / (data.len() / 4) as f64
+}
+
+/// The largest channel difference between two images, and the share of pixels that differ
+/// by more than 2 in a channel (images of other sizes differ everywhere).
+pub fn compare(a: &Image, b: &Image) -> (u8, f64) {
+    let (Some(a), Some(b)) = (&a.data, &b.data) else {
+        return (255, 1.0);
+    };
+    if a.len() != b.len() {
+        return (255, 1.0);
+    }
+    let mut max = 0;
+    let mut differing = 0;
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        let d = pa
+            .iter()
+            .zip(pb)
+            .map(|(x, y)| x.abs_diff(*y))
+            .max()
+            .unwrap_or(0);
+        max = max.max(d);
+        differing += usize::from(d > 2);
+    }
+    (max, differing as f64 / (a.len() / 4) as f64)
+}
+
+/// Saves an image as PNG.
+pub fn save_image(image: &Image, path: &Path) -> Result<(), String> {
+    image
+        .clone()
+        .try_into_dynamic()
+        .map_err(|e| e.to_string())?
+        .to_rgb8()
+        .save(path)
+        .map_err(|e| format!("save {}: {e}", path.display()))
+}

@@ -56,17 +56,23 @@ fn at_rest(app: &App, model: Entity, asset: &MultiresMesh) -> Vec<bool> {
         .collect()
 }
 
-#[test]
-fn a_camera_cut_morphs_under_the_budget_and_comes_to_rest() {
+/// An app under the test budget whose clock runs 1/60 s a frame, with `asset` added.
+fn morph_app(asset: &MultiresMesh) -> (App, Handle<MultiresMesh>) {
     let mut app = app(BUDGET);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
         1.0 / 60.0,
     )));
-    let asset = cow();
     let handle = app
         .world_mut()
         .resource_mut::<Assets<MultiresMesh>>()
         .add(asset.clone());
+    (app, handle)
+}
+
+#[test]
+fn a_camera_cut_morphs_under_the_budget_and_comes_to_rest() {
+    let asset = cow();
+    let (mut app, handle) = morph_app(&asset);
     let model = app
         .world_mut()
         .spawn((MultiresModel(handle), Geomorph(T), Transform::default()))
@@ -177,14 +183,7 @@ fn region_meshes(app: &App, model: Entity) -> Vec<Mesh> {
 fn gpu_geomorphs_draw_what_cpu_geomorphs_write_and_write_less() {
     let asset = cow();
     let mut apps = [false, true].map(|on_gpu| {
-        let mut app = app(BUDGET);
-        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
-            1.0 / 60.0,
-        )));
-        let handle = app
-            .world_mut()
-            .resource_mut::<Assets<MultiresMesh>>()
-            .add(asset.clone());
+        let (mut app, handle) = morph_app(&asset);
         let mut model =
             app.world_mut()
                 .spawn((MultiresModel(handle), Geomorph(T), Transform::default()));
@@ -257,14 +256,7 @@ fn gpu_geomorphs_draw_what_cpu_geomorphs_write_and_write_less() {
 /// the coarsenings free, so the models together never show more than the budget.
 #[test]
 fn models_sharing_the_budget_never_show_more_than_it_during_morphs() {
-    let mut app = app(BUDGET);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f32(
-        1.0 / 60.0,
-    )));
-    let handle = app
-        .world_mut()
-        .resource_mut::<Assets<MultiresMesh>>()
-        .add(cow());
+    let (mut app, handle) = morph_app(&cow());
     for x in [-3.0, 0.0, 3.0] {
         app.world_mut().spawn((
             MultiresModel(handle.clone()),

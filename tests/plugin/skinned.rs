@@ -275,14 +275,7 @@ fn check_against_reference(root_dir: &str, path: &'static str, clip_name: &str, 
         return;
     }
     let stats = *app.world().resource::<AslodStats>();
-    let (lo, hi) = app
-        .world_mut()
-        .query::<&MultiresInstance>()
-        .iter(app.world())
-        .flat_map(|i| i.regions().regions().iter())
-        .fold((0, 0), |(lo, hi), r| {
-            (lo + r.min_triangles(), hi + r.max_triangles())
-        });
+    let (lo, hi) = level_range(&mut app);
     assert_eq!(hi as u64, stats.triangles, "full detail before");
     let budget = stats.fixed_cost + ((3 * lo + hi) / 4) as u32;
     app.world_mut().resource_mut::<PolygonBudget>().total = budget;
@@ -330,14 +323,7 @@ fn mannequin_matches_reference_skinning_at_full_and_reduced_detail() {
 fn mannequin_stays_watertight_while_animated_at_every_level() {
     let mut app = app(1_000_000, ASSETS);
     let (root, node, player, length) = spawn_character(&mut app, MANNEQUIN, "Aerobics");
-    let (lo, hi) = app
-        .world_mut()
-        .query::<&MultiresInstance>()
-        .iter(app.world())
-        .flat_map(|i| i.regions().regions().iter())
-        .fold((0, 0), |(lo, hi), r| {
-            (lo + r.min_triangles(), hi + r.max_triangles())
-        });
+    let (lo, hi) = level_range(&mut app);
     for (step, fraction) in [0.0f32, 0.02, 0.1, 0.3, 0.7, 1.0].into_iter().enumerate() {
         let budget = lo as u32 + ((hi - lo) as f32 * fraction) as u32;
         app.world_mut().resource_mut::<PolygonBudget>().total = budget.max(1);
@@ -364,6 +350,17 @@ fn mannequin_stays_watertight_while_animated_at_every_level() {
             assert_watertight(&pairs, height, &format!("P = {budget}, t = {t}"));
         }
     }
+}
+
+/// The fewest and the most triangles the models' regions can show together.
+fn level_range(app: &mut App) -> (usize, usize) {
+    app.world_mut()
+        .query::<&MultiresInstance>()
+        .iter(app.world())
+        .flat_map(|i| i.regions().regions().iter())
+        .fold((0, 0), |(lo, hi), r| {
+            (lo + r.min_triangles(), hi + r.max_triangles())
+        })
 }
 
 /// One place per source vertex, and closed: each directed edge once, and its reverse once.
@@ -413,14 +410,7 @@ fn a_dancing_skinned_model_morphs_closed_and_comes_to_rest() {
     for &model in &models {
         app.world_mut().entity_mut(model).insert(Geomorph(0.25));
     }
-    let (lo, hi) = app
-        .world_mut()
-        .query::<&MultiresInstance>()
-        .iter(app.world())
-        .flat_map(|i| i.regions().regions().iter())
-        .fold((0, 0), |(lo, hi), r| {
-            (lo + r.min_triangles(), hi + r.max_triangles())
-        });
+    let (lo, hi) = level_range(&mut app);
     let mut t = 0.0;
     let dance = |app: &mut App, t: &mut f32| {
         *t = (*t + 1.0 / 60.0) % length;
