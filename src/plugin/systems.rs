@@ -1375,8 +1375,8 @@ fn upload_skinned(instance: &mut MultiresInstance, target: &mut UploadTarget) ->
 
 /// Writes the vertices `SelectLod` staged for a [`Geomorph`] model's regions into their
 /// meshes; on the GPU, first gives the meshes the morph attributes (a change Bevy uploads
-/// whole, once).
-fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
+/// whole, once). `swapped`: the regions whose index buffer changed this frame.
+fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget, swapped: &[u32]) {
     let Some(morph) = &mut instance.morph else {
         return;
     };
@@ -1436,7 +1436,9 @@ fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget) {
             }
         }
         if n > 0 && written && !relayout {
-            target.vertices_changed(id, &[first as u32, (first + n) as u32 - 1], false);
+            // (A region whose indices changed too was counted whole already.)
+            let counted = swapped.contains(&(r as u32));
+            target.vertices_changed(id, &[first as u32, (first + n) as u32 - 1], counted);
         }
     }
     if morph.morphs.duration() == 0.0 && !morph.moved.contains(&true) {
@@ -1481,6 +1483,8 @@ fn upload(
 ) {
     let start = Instant::now();
     let mut changed = 0;
+    // Per model: the regions whose index buffer `Upload` swapped.
+    let mut swapped = Vec::new();
     let mut target = UploadTarget {
         meshes: &mut meshes,
         direct: *mode == RegionUpload::IndicesOnly,
@@ -1500,6 +1504,7 @@ fn upload(
         }
         changed += upload_skinned(instance, &mut target);
         // Only the regions `SelectLod` wrote: their staging slots and meshes.
+        swapped.clear();
         for r in instance.ready.drain(..) {
             let r = r as usize;
             let StagedIndices { ready, indices } = &mut instance.staged[r];
@@ -1518,9 +1523,10 @@ fn upload(
             if swap_staged(mesh, indices) {
                 changed += 1;
                 target.indices_changed(id, entity);
+                swapped.push(r as u32);
             }
         }
-        upload_morphs(instance, &mut target);
+        upload_morphs(instance, &mut target, &swapped);
     }
     stats.upload_bytes = target.bytes;
     stats.regions_changed = changed;
