@@ -234,10 +234,8 @@ pub(crate) struct RegionSkin {
     pub(crate) indices_changed: bool,
     /// Under geomorphs: the `Deform`s left that write the region from its morphs: while
     /// it moves, and twice after, at rest, so both of its buffers end current (a rigid
-    /// region's own vertices are written only then).
+    /// region's `referenced` holds its own vertices only then).
     morph_passes: u8,
-    /// `referenced` holds a rigid region's own vertices (while `morph_passes` is not 0).
-    refers_to_own: bool,
     /// Under geomorphs: the bind-space positions and normals the region's vertices are
     /// skinned from (the source's, moving ones where their morph shows them).
     morph_positions: Vec<Vec3>,
@@ -328,6 +326,7 @@ impl SkinState {
     ) {
         for (r, state) in self.regions.iter_mut().enumerate() {
             let moving = morphs.is_some_and(|m| m.is_region_moving(regions, r));
+            let had_own = state.morph_passes > 0;
             state.morph_passes = if moving {
                 3
             } else {
@@ -340,7 +339,7 @@ impl SkinState {
                 caches.write_indices(regions, r, &mut state.indices);
                 state.indices_changed = true;
                 state.refresh_referenced(own, rigid && !with_own);
-            } else if rigid && with_own != state.refers_to_own {
+            } else if rigid && with_own != had_own {
                 // (`indices` is not the mesh's buffer after `Upload`: own vertices are
                 // added whole, or taken out.)
                 if with_own {
@@ -349,7 +348,6 @@ impl SkinState {
                     state.referenced.retain(|&v| v as usize >= own);
                 }
             }
-            state.refers_to_own = with_own;
         }
     }
 

@@ -359,6 +359,7 @@ impl Geomorphs {
     ) -> usize {
         let mut refine = Vec::new();
         self.begin_allocation(mesh, caches, counts, now, &mut refine);
+        refine.sort_by_key(|&(_, wanted)| std::cmp::Reverse(wanted));
         let mut total = caches.total_triangles();
         for (r, wanted) in refine {
             let grant = (wanted as usize).min(budget.saturating_sub(total));
@@ -370,7 +371,7 @@ impl Geomorphs {
     /// The first half of [`apply_allocation`](Self::apply_allocation), for a budget shared
     /// with other instances: coarsens the regions asked for fewer triangles, turns back the
     /// coarsening ones asked for at least what they show, and puts the refinements wanted in
-    /// `refine` (region, triangles more than it shows), largest first. Grant them with
+    /// `refine` (region, triangles more than it shows), in region order. Grant them with
     /// [`grant`](Self::grant) out of what is free.
     ///
     /// # Panics
@@ -397,7 +398,6 @@ impl Geomorphs {
                 refine.push((r as u32, (count - shown) as u32));
             }
         }
-        refine.sort_by_key(|&(_, wanted)| std::cmp::Reverse(wanted));
     }
 
     /// Refines region `region` by at most `triangles` more than it shows (a refinement
