@@ -49,6 +49,7 @@ mod cache;
 mod heap;
 pub(crate) mod hierarchy;
 mod index;
+pub(crate) mod morph;
 mod quadric;
 pub(crate) mod records;
 

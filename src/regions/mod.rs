@@ -260,7 +260,8 @@ pub struct RegionMesh {
     /// builds check that no other border triangles meet. A file's are only range-checked.
     pub(crate) built: bool,
     /// The geomorph tables, made by the first [`Geomorphs`] of the mesh and shared by all.
-    pub(crate) morph_tables: std::sync::OnceLock<std::sync::Arc<morph::MorphTables>>,
+    pub(crate) morph_tables:
+        std::sync::OnceLock<std::sync::Arc<crate::multires::morph::MorphTables>>,
 }
 
 /// Equal regions, however they were made.
