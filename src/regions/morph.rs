@@ -147,16 +147,16 @@ impl Geomorphs {
         }
 
         // Vertices heading for representatives at a level no longer wanted turn back.
-        for step in goal.max(shown)..before.max(shown) {
-            for &p in &removed_at[step] {
+        for step in &removed_at[goal.max(shown)..before.max(shown)] {
+            for &p in step {
                 self.motion.retarget(p, Toward::Own, below(0), now);
             }
         }
         if goal <= shown {
             // Refine now: what appears starts on its representative at the shown level.
             self.pending[region] = None;
-            for step in goal..shown {
-                for &p in &removed_at[step] {
+            for step in &removed_at[goal..shown] {
+                for &p in step {
                     self.motion.appear(p, below(shown), now);
                 }
             }
@@ -164,8 +164,8 @@ impl Geomorphs {
         } else {
             // Coarsen later: what vanishes moves onto its representative at the goal first
             // (a vertex already on its way there keeps going).
-            for step in shown..goal {
-                for &p in &removed_at[step] {
+            for step in &removed_at[shown..goal] {
+                for &p in step {
                     let to = Toward::Position(tables.representative(p, below(goal)));
                     if self.motion.heading(p) != Some(to) {
                         self.motion.retarget(p, to, below(goal), now);
