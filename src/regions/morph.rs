@@ -147,7 +147,8 @@ impl Geomorphs {
         }
 
         // Vertices heading for representatives at a level no longer wanted turn back.
-        for step in &removed_at[goal.max(shown)..before.max(shown)] {
+        let turned = goal.max(shown)..before.max(shown);
+        for step in removed_at.get(turned).unwrap_or_default() {
             for &p in step {
                 self.motion.retarget(p, Toward::Own, below(0), now);
             }
