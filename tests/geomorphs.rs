@@ -1,4 +1,5 @@
-//! Geomorphs between region levels: random level changes on closed meshes in regions,
+//! Geomorphs between region levels and between variable-resolution levels: random level
+//! changes on closed meshes,
 //! sampled at random morph times, never open an edge or jump; at the end of a morph every
 //! vertex is at its own position and the levels are the ones asked for; a duration of 0 is
 //! the plain caches.
@@ -6,7 +7,10 @@
 mod common;
 
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};
-use bevy_aslod::multires::BuildOptions;
+use bevy_aslod::multires::{BuildOptions, ProgressiveMesh};
+use bevy_aslod::refine::{
+    LevelCut, SphereOfInterest, VariableCache, VariableGeomorphs, VariableMesh, View,
+};
 use bevy_aslod::regions::{Geomorphs, Partition, RegionCaches, RegionMesh, VertexMorph};
 use common::{
     Rng, assert_closed, border_edges, grid, sphere, testdata_mesh, welded_directed_edges,
@@ -73,12 +77,11 @@ fn assert_crack_free(
 
 /// The triangles shown at `now` as position triples (exact bits, each rotated to start at
 /// its least), without the flat ones: the surface, whichever vertices make it.
-fn triangles_shown(morphs: &Geomorphs, indices: &[u32], now: f32) -> Vec<[[u32; 3]; 3]> {
+fn triangles_shown(position: impl Fn(u32) -> Vec3, indices: &[u32]) -> Vec<[[u32; 3]; 3]> {
     let mut out: Vec<[[u32; 3]; 3]> = indices
         .chunks_exact(3)
         .filter_map(|t| {
-            let p =
-                [t[0], t[1], t[2]].map(|g| morphs.position(g, now).to_array().map(f32::to_bits));
+            let p = [t[0], t[1], t[2]].map(|g| position(g).to_array().map(f32::to_bits));
             if p[0] == p[1] || p[1] == p[2] || p[2] == p[0] {
                 return None;
             }
@@ -90,11 +93,30 @@ fn triangles_shown(morphs: &Geomorphs, indices: &[u32], now: f32) -> Vec<[[u32; 
     out
 }
 
-fn shown(morphs: &Geomorphs, indices: &[u32], now: f32) -> Vec<(u32, Vec3)> {
+fn shown(position: impl Fn(u32) -> Vec3, indices: &[u32]) -> Vec<(u32, Vec3)> {
     let used: HashSet<u32> = indices.iter().copied().collect();
-    used.into_iter()
-        .map(|g| (g, morphs.position(g, now)))
-        .collect()
+    used.into_iter().map(|g| (g, position(g))).collect()
+}
+
+/// No jump: what was shown (`before`) stays where it was; what appears is where a shown
+/// vertex was, or (`own_place(g)`) at its own place.
+fn assert_no_jump(
+    before: &[(u32, Vec3)],
+    after: &[(u32, Vec3)],
+    own_place: impl Fn(u32, Vec3) -> bool,
+    at: &str,
+) {
+    let was: std::collections::HashMap<u32, Vec3> = before.iter().copied().collect();
+    let positions: Vec<Vec3> = before.iter().map(|&(_, p)| p).collect();
+    for &(g, p) in after {
+        match was.get(&g) {
+            Some(&q) => assert_eq!(p, q, "{at}: vertex {g} jumped"),
+            None => assert!(
+                positions.contains(&p) || own_place(g, p),
+                "{at}: vertex {g} appeared off the mesh"
+            ),
+        }
+    }
 }
 
 #[test]
@@ -125,7 +147,7 @@ fn random_level_changes_stay_crack_free_and_never_jump() {
             now += rng.unit() * 0.4;
             morphs.update(&rm, &mut caches, now);
             let before_indices = assemble(&rm, &mut caches);
-            let before = shown(&morphs, &before_indices, now);
+            let before = shown(|g| morphs.position(g, now), &before_indices);
             let levels: Vec<usize> = (0..rm.regions().len()).map(|r| caches.level(r)).collect();
             let regions_changed = 1 + (rng.next() % rm.regions().len() as u64) as usize;
             for _ in 0..regions_changed {
@@ -134,32 +156,26 @@ fn random_level_changes_stay_crack_free_and_never_jump() {
                 let count = (rng.unit() * max as f32) as usize;
                 morphs.set_triangle_count(&rm, &mut caches, r, count, now);
             }
-            // No jump: what was shown stays where it was; what appears is where a shown
-            // vertex is (or, when its region had it all along and only a neighbour's triangle
-            // that starts flat brings it in, at its own place).
-            let after_indices = assemble(&rm, &mut caches);
-            let after = shown(&morphs, &after_indices, now);
-            let was: std::collections::HashMap<u32, Vec3> = before.iter().copied().collect();
-            let positions: Vec<Vec3> = before.iter().map(|&(_, p)| p).collect();
-            for (g, p) in after {
-                match was.get(&g) {
-                    Some(&q) => assert_eq!(p, q, "{name}, request {request}: vertex {g} jumped"),
-                    None => {
-                        let level = levels[rm.partition().region_of()[g as usize] as usize];
-                        let present = morphs.stand_in(g, level) == morphs.stand_in(g, 0);
-                        assert!(
-                            positions.contains(&p) || (present && p == mesh.positions[g as usize]),
-                            "{name}, request {request}: vertex {g} appeared off the mesh"
-                        );
-                    }
-                }
-            }
+            // What appears is where a shown vertex is (or, when its region had it all along
+            // and only a neighbour's triangle that starts flat brings it in, at its own place).
+            let after = shown(|g| morphs.position(g, now), &assemble(&rm, &mut caches));
+            let own_place = |g: u32, p: Vec3| {
+                let level = levels[rm.partition().region_of()[g as usize] as usize];
+                morphs.stand_in(g, level) == morphs.stand_in(g, 0)
+                    && p == mesh.positions[g as usize]
+            };
+            assert_no_jump(
+                &before,
+                &after,
+                own_place,
+                &format!("{name}, request {request}"),
+            );
             // Sampled at random times within the morph.
             for _ in 0..3 {
                 let at = now + rng.unit() * T;
                 let mut c = caches.clone();
                 let mut m = morphs.clone();
-                let landing = triangles_shown(&m, &assemble(&rm, &mut c), at);
+                let landing = triangles_shown(|g| m.position(g, at), &assemble(&rm, &mut c));
                 m.update(&rm, &mut c, at);
                 let indices = assemble(&rm, &mut c);
                 let context = format!("{name}, request {request}");
@@ -168,7 +184,7 @@ fn random_level_changes_stay_crack_free_and_never_jump() {
                 // the coarser ones: the same surface, no pop. Checked on closed meshes: on an
                 // open outline an ear's vertex can vanish without a recorded move, and its
                 // triangles go at once.
-                let landed = triangles_shown(&m, &indices, at);
+                let landed = triangles_shown(|g| m.position(g, at), &indices);
                 assert!(
                     !closed || landed == landing,
                     "{context}: the surface changed as a coarsening landed"
@@ -409,6 +425,197 @@ fn a_gpu_copy_taken_at_restarts_shows_what_the_cpu_does() {
                     );
                 }
             }
+        }
+    }
+}
+
+// Variable-resolution levels (`VariableGeomorphs`).
+
+fn variable(mesh: &IndexedMesh) -> VariableMesh {
+    let options = BuildOptions::default().with_view_dependent(true);
+    VariableMesh::new(ProgressiveMesh::build(mesh, &options).unwrap()).unwrap()
+}
+
+/// A random variable-resolution target: detail kept inside a random sphere, or a uniform
+/// level.
+fn random_target(vm: &VariableMesh, mesh: &IndexedMesh, target: &mut VariableCache, rng: &mut Rng) {
+    let view = View::perspective(Vec3::Z, Vec3::NEG_Z, Vec3::Y, 1.0, 1.0, 0.1, 10.0).unwrap();
+    if rng.below(4) == 0 {
+        let level = rng.below(vm.mesh().level_triangle_counts().len());
+        target.update(vm, &LevelCut(level), &view).unwrap();
+    } else {
+        let centre = mesh.positions[rng.below(mesh.positions.len())];
+        let (lo, hi) = mesh.bounds().unwrap();
+        let radius = rng.unit() * 0.5 * (hi - lo).length();
+        let sphere = SphereOfInterest::new(centre, radius).unwrap();
+        target.update(vm, &sphere, &view).unwrap();
+    }
+}
+
+#[test]
+fn variable_levels_morph_crack_free_without_jumps_and_land_on_the_target() {
+    for (name, mesh) in [
+        ("sphere", sphere(16, 24, &[0.0, 0.04, -0.02, 0.01], true)),
+        ("cow", testdata_mesh("cow.obj")),
+    ] {
+        let vm = variable(&mesh);
+        let vertices = &vm.mesh().vertices().positions;
+        let mut target = VariableCache::new(&vm);
+        let mut morphs = VariableGeomorphs::new(&vm, &target, T);
+        let mut rng = Rng(0x51_7CC1_B727_220A);
+        let mut now = 0.0f32;
+        for request in 0..50 {
+            now += rng.unit() * 0.4;
+            let at = format!("{name}, request {request}");
+            let shown_before = morphs.shown().indices().to_vec();
+            let before = shown(|v| morphs.position(v, now), &shown_before);
+            random_target(&vm, &mesh, &mut target, &mut rng);
+            // Half the requests under a budget of what is shown (refinements wait).
+            let budget = if rng.below(2) == 0 {
+                shown_before.len() / 3
+            } else {
+                usize::MAX
+            };
+            let triangles = morphs.follow(&vm, &target, budget, now).unwrap();
+            assert_eq!(triangles, morphs.shown().triangle_count());
+            assert!(
+                triangles <= budget.max(shown_before.len() / 3),
+                "{at}: over the budget"
+            );
+            let after = shown(|v| morphs.position(v, now), morphs.shown().indices());
+            // A vertex shown without a morph is at its own place.
+            let own_place = |v: u32, p: Vec3| p == vertices[v as usize];
+            assert_no_jump(&before, &after, own_place, &at);
+            for _ in 0..3 {
+                let t = now + rng.unit() * T;
+                let mut m = morphs.clone();
+                let landing = triangles_shown(|v| m.position(v, t), m.shown().indices());
+                m.follow(&vm, &target, 0, t).unwrap();
+                let indices = m.shown().indices();
+                assert_closed(vertices, indices, &at);
+                let landed = triangles_shown(|v| m.position(v, t), indices);
+                assert_eq!(
+                    landed, landing,
+                    "{at}: the surface changed as collapses landed"
+                );
+            }
+        }
+        now += T;
+        morphs.follow(&vm, &target, usize::MAX, now).unwrap();
+        assert!(!morphs.is_morphing(), "{name}: still morphing");
+        assert_eq!(
+            common::triangle_multiset(morphs.shown().indices()),
+            common::triangle_multiset(target.indices()),
+            "{name}: the level shown is not the target's"
+        );
+        let mut out = Vec::new();
+        morphs.write_positions(now, &mut out);
+        assert_eq!(&out, vertices, "{name}: a vertex is not at its own place");
+    }
+}
+
+/// The detail moves from one end of the cow to the other and back: the collapses the new
+/// target performs keep their triangles until they land, so its refinements wait for them
+/// under a budget that fits either target, and the level settles on each target.
+#[test]
+fn variable_levels_under_a_budget_never_show_more_and_settle() {
+    let mesh = testdata_mesh("cow.obj");
+    let vm = variable(&mesh);
+    let view = View::perspective(Vec3::Z, Vec3::NEG_Z, Vec3::Y, 1.0, 1.0, 0.1, 10.0).unwrap();
+    let (lo, hi) = mesh.bounds().unwrap();
+    let radius = 0.2 * (hi - lo).length();
+    // The vertices furthest apart along the longest axis.
+    let axis = (hi - lo).max_position();
+    let along = |a: &&Vec3, b: &&Vec3| a[axis].total_cmp(&b[axis]);
+    let first = *mesh.positions.iter().min_by(along).unwrap();
+    let last = *mesh.positions.iter().max_by(along).unwrap();
+    let mut ends = [first, last].map(|centre| {
+        let mut cache = VariableCache::new(&vm);
+        let sphere = SphereOfInterest::new(centre, radius).unwrap();
+        cache.update(&vm, &sphere, &view).unwrap();
+        cache
+    });
+    let budget = ends
+        .iter()
+        .map(VariableCache::triangle_count)
+        .max()
+        .unwrap();
+    let [a, b] = &mut ends;
+    let mut morphs = VariableGeomorphs::new(&vm, a, T);
+    let mut now = 0.0;
+    let mut waited = 0;
+    for round in 0..4 {
+        let target = if round % 2 == 0 { &*b } else { &*a };
+        for frame in 0..40 {
+            now += 1.0 / 60.0;
+            let shown = morphs.follow(&vm, target, budget, now).unwrap();
+            assert!(
+                shown <= budget,
+                "round {round}, frame {frame}: {shown} of {budget}"
+            );
+            let settled = common::triangle_multiset(morphs.shown().indices())
+                == common::triangle_multiset(target.indices());
+            waited += usize::from(frame > 0 && shown == budget && !settled);
+        }
+        assert!(!morphs.is_morphing(), "round {round}: still morphing");
+        assert_eq!(
+            common::triangle_multiset(morphs.shown().indices()),
+            common::triangle_multiset(target.indices()),
+            "round {round}"
+        );
+    }
+    assert!(waited > 0, "no refinement waited for the budget");
+}
+
+#[test]
+fn variable_levels_with_a_duration_of_zero_show_the_target() {
+    let mesh = testdata_mesh("cow.obj");
+    let vm = variable(&mesh);
+    let mut target = VariableCache::new(&vm);
+    let mut morphs = VariableGeomorphs::new(&vm, &target, 0.0);
+    let mut rng = Rng(5);
+    for frame in 0..20 {
+        random_target(&vm, &mesh, &mut target, &mut rng);
+        let shown = morphs.follow(&vm, &target, 0, frame as f32).unwrap();
+        assert_eq!(shown, target.triangle_count());
+        assert_eq!(morphs.shown().indices(), target.indices());
+        assert!(!morphs.is_morphing());
+    }
+}
+
+/// A GPU copy of [`VariableGeomorphs::vertex_morph`], taken again only in the runs
+/// [`VariableGeomorphs::take_restarted`] gives, shows what the CPU does.
+#[test]
+fn a_gpu_copy_of_variable_morphs_shows_what_the_cpu_does() {
+    let mesh = testdata_mesh("cow.obj");
+    let vm = variable(&mesh);
+    let mut target = VariableCache::new(&vm);
+    let mut morphs = VariableGeomorphs::new(&vm, &target, T);
+    let n = vm.mesh().vertices().vertex_count() as u32;
+    let mut gpu: Vec<VertexMorph> = (0..n).map(|v| morphs.vertex_morph(v)).collect();
+    let mut rng = Rng(13);
+    let mut now = 0.0f32;
+    for request in 0..40 {
+        now += rng.unit() * 0.3;
+        random_target(&vm, &mesh, &mut target, &mut rng);
+        morphs.follow(&vm, &target, usize::MAX, now).unwrap();
+        if let Some((lo, hi)) = morphs.take_restarted() {
+            for v in lo..=hi {
+                gpu[v as usize] = morphs.vertex_morph(v);
+            }
+        }
+        let t = now + rng.unit() * 0.3;
+        let mut m = morphs.clone();
+        m.follow(&vm, &target, 0, t).unwrap();
+        for &v in m.shown().indices() {
+            let g = gpu[v as usize];
+            let k = ((t - g.start) / T).clamp(0.0, 1.0);
+            let p = if k >= 1.0 {
+                g.to
+            } else {
+                g.from + (g.to - g.from) * k
+            };
+            assert_eq!(p, m.position(v, t), "request {request}: vertex {v}");
         }
     }
 }

@@ -30,7 +30,7 @@ const NONE: u32 = u32::MAX;
 pub struct VariableCache<I: CacheIndex = u32> {
     /// Every slot's current version.
     slots: Vec<I>,
-    performed: Bits,
+    pub(super) performed: Bits,
     performed_count: usize,
     /// The drawn triangles, and for each its slot; for each slot, its triangle or [`NONE`].
     out: Vec<I>,
@@ -44,7 +44,7 @@ pub struct VariableCache<I: CacheIndex = u32> {
     frozen: Bits,
     /// Collapses of the mesh the cache was made for.
     collapses: usize,
-    changed: bool,
+    pub(super) changed: bool,
 }
 
 impl VariableCache {
@@ -258,7 +258,7 @@ impl<I: CacheIndex> VariableCache<I> {
         })
     }
 
-    fn check(&self, mesh: &VariableMesh) -> Result<(), RefineError> {
+    pub(super) fn check(&self, mesh: &VariableMesh) -> Result<(), RefineError> {
         let slots = mesh.mesh.max_triangles();
         if self.out_pos.len() != slots || self.collapses != mesh.collapse_count() {
             return Err(RefineError::MeshMismatch {
@@ -277,7 +277,7 @@ impl<I: CacheIndex> VariableCache<I> {
 
     /// Performed, and no collapse that depends on it is.
     #[inline]
-    fn is_maximal(&self, mesh: &VariableMesh, step: usize) -> bool {
+    pub(super) fn is_maximal(&self, mesh: &VariableMesh, step: usize) -> bool {
         self.performed.get(step)
             && mesh
                 .dependents(step)
@@ -287,7 +287,7 @@ impl<I: CacheIndex> VariableCache<I> {
 
     /// Not performed, and every collapse it depends on is.
     #[inline]
-    fn is_candidate(&self, mesh: &VariableMesh, step: usize) -> bool {
+    pub(super) fn is_candidate(&self, mesh: &VariableMesh, step: usize) -> bool {
         !self.performed.get(step)
             && mesh
                 .dependencies(step)
@@ -308,7 +308,7 @@ impl<I: CacheIndex> VariableCache<I> {
 
     /// Performs `step`, a candidate: rewrites its corners (they lie in drawn triangles) and
     /// swaps its removed triangles out of the index buffer.
-    fn perform(&mut self, mesh: &VariableMesh, step: usize) {
+    pub(super) fn perform(&mut self, mesh: &VariableMesh, step: usize) {
         with_records!(&mesh.mesh.records, r => self.rewrite(mesh, r, step, NEW));
         let (first, removed) = removed_slots(mesh, step);
         for s in first..first + removed {
@@ -316,10 +316,11 @@ impl<I: CacheIndex> VariableCache<I> {
         }
         self.performed.set(step);
         self.performed_count += 1;
+        self.changed = true;
     }
 
     /// Undoes `step`, a performed collapse nothing performed depends on.
-    fn undo(&mut self, mesh: &VariableMesh, step: usize) {
+    pub(super) fn undo(&mut self, mesh: &VariableMesh, step: usize) {
         let (first, removed) = removed_slots(mesh, step);
         for s in first..first + removed {
             self.push_out(s);
@@ -327,6 +328,7 @@ impl<I: CacheIndex> VariableCache<I> {
         with_records!(&mesh.mesh.records, r => self.rewrite(mesh, r, step, OLD));
         self.performed.clear(step);
         self.performed_count -= 1;
+        self.changed = true;
     }
 
     fn rewrite<V: CacheIndex, H: Header, C: Corner>(

@@ -36,6 +36,11 @@ impl Bits {
         self.0[i >> 6] &= !(1 << (i & 63));
     }
 
+    /// The bits, 64 to a word, the first in the lowest bit of the first word.
+    pub(crate) fn words(&self) -> &[u64] {
+        &self.0
+    }
+
     /// Bytes held.
     pub(crate) fn bytes(&self) -> usize {
         self.0.len() * 8

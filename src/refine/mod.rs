@@ -62,6 +62,7 @@ mod cache;
 mod criteria;
 mod error;
 mod extract;
+mod morph;
 mod view;
 
 pub use budget::{BudgetFit, ToleranceSearch};
@@ -72,6 +73,7 @@ pub use criteria::{
 };
 pub use error::RefineError;
 pub use extract::RefineStats;
+pub use morph::VariableGeomorphs;
 pub use view::View;
 
 use crate::multires::records::{Corner, Header, Records};
@@ -104,6 +106,8 @@ pub struct VariableMesh {
     mesh: ProgressiveMesh,
     nodes: Vec<Node>,
     graph: Graph,
+    /// The geomorph tables, made by the mesh's first [`VariableGeomorphs`] and shared.
+    morph_tables: std::sync::OnceLock<std::sync::Arc<crate::multires::morph::MorphTables>>,
 }
 
 impl VariableMesh {
@@ -135,7 +139,12 @@ impl VariableMesh {
             })
             .collect();
         let graph = with_records!(&mesh.records, r => Graph::new(r));
-        Ok(Self { nodes, graph, mesh })
+        Ok(Self {
+            nodes,
+            graph,
+            mesh,
+            morph_tables: std::sync::OnceLock::new(),
+        })
     }
 
     /// The progressive mesh.
