@@ -16,11 +16,18 @@
 //! vertices a morph started on, `Geomorphs::take_restarted`, 56 B each). T = 1 s shows what
 //! a longer morph does to the largest movement.
 //!
+//! The "(view-dependent)" rows refine each mesh as one variable-resolution model instead:
+//! its level fitted to the budget every frame (`ToleranceSearch`, frustum and back faces)
+//! and shown through `refine::VariableGeomorphs::follow` under the budget.
+//!
 //! `cargo bench --no-default-features --bench geomorph`
 
 use bevy_aslod::budget::{AllocationParams, Allocator, Obb, ProjectedAreaCamera, RegionInput};
-use bevy_aslod::mesh::{IndexedMesh, load_gltf};
-use bevy_aslod::multires::BuildOptions;
+use bevy_aslod::mesh::{IndexedMesh, load_gltf, weld_positions};
+use bevy_aslod::multires::{BuildOptions, ProgressiveMesh};
+use bevy_aslod::refine::{
+    Criteria, LevelCut, ToleranceSearch, VariableCache, VariableGeomorphs, VariableMesh, View,
+};
 use bevy_aslod::regions::{Geomorphs, GridPlane, Partition, Region, RegionCaches, RegionMesh};
 use glam::{Mat4, Vec2, Vec3};
 use std::collections::HashMap;
@@ -74,8 +81,9 @@ fn scenes(quick: bool) -> Vec<Scene> {
     ]
 }
 
-/// The camera at frame `f` of `frames`: far orbit, then a cut to a near one.
-fn camera(f: usize, frames: usize, centre: Vec3, radius: f32) -> (Mat4, ProjectedAreaCamera) {
+/// The camera at frame `f` of `frames`: far orbit, then a cut to a near one. Returns its
+/// clip matrix, projected-area camera and eye.
+fn camera(f: usize, frames: usize, centre: Vec3, radius: f32) -> (Mat4, ProjectedAreaCamera, Vec3) {
     let near_half = f >= frames / 2;
     let distance = if near_half { 1.3 } else { 6.0 } * radius;
     let angle = f as f32 * 0.01;
@@ -84,7 +92,7 @@ fn camera(f: usize, frames: usize, centre: Vec3, radius: f32) -> (Mat4, Projecte
     let projection = Mat4::perspective_infinite_reverse_rh(FOV_Y, WIDTH / HEIGHT, 0.01 * radius);
     let area = ProjectedAreaCamera::new(view, projection, Vec2::new(WIDTH, HEIGHT))
         .expect("a valid camera");
-    (projection * view, area)
+    (projection * view, area, eye)
 }
 
 fn to_screen(clip: &Mat4, p: Vec3) -> Option<Vec2> {
@@ -138,7 +146,7 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
     let mut positions = Vec::new();
     for f in 0..frames {
         let now = f as f32 * DT;
-        let (clip, area_camera) = camera(f, frames, centre, radius);
+        let (clip, area_camera, _) = camera(f, frames, centre, radius);
         area_camera.projected_areas(obbs, &mut areas);
         // The view's allocation, whatever is morphing (`apply_allocation` holds the budget).
         inputs.clear();
@@ -191,37 +199,161 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
         let new_levels: Vec<usize> = (0..regions.regions().len())
             .map(|r| caches.level(r))
             .collect();
-        let mut largest = 0.0f32;
-        if f > 0 && f != frames / 2 {
-            let moved = |a: Vec3, b: Vec3| match (to_screen(&clip, a), to_screen(&clip, b)) {
-                (Some(a), Some(b)) => a.distance(b),
-                _ => 0.0,
-            };
-            for (&g, &p) in &now_shown {
-                let before = match shown.get(&g) {
-                    Some(&q) => q,
-                    None => {
-                        let level = levels[region_of[g as usize] as usize];
-                        let stand_in = morphs.stand_in(g, level);
-                        shown.get(&stand_in).copied().unwrap_or(p)
-                    }
-                };
-                largest = largest.max(moved(before, p));
-            }
-            for (&g, &q) in &shown {
-                if !now_shown.contains_key(&g) {
-                    let level = new_levels[region_of[g as usize] as usize];
-                    let stand_in = morphs.stand_in(g, level);
-                    let p = now_shown.get(&stand_in).copied().unwrap_or(q);
-                    largest = largest.max(moved(q, p));
-                }
-            }
-        }
-        out.movement.push(largest);
+        let stand_in =
+            |g: u32, levels: &[usize]| morphs.stand_in(g, levels[region_of[g as usize] as usize]);
+        out.movement.push(if f > 0 && f != frames / 2 {
+            largest_movement(
+                &clip,
+                &shown,
+                &now_shown,
+                |g| stand_in(g, &levels),
+                |g| stand_in(g, &new_levels),
+            )
+        } else {
+            0.0
+        });
         shown = now_shown;
         levels = new_levels;
     }
     out
+}
+
+/// The largest screen movement of a vertex between the frame that showed `before` and the
+/// one that shows `now` (vertex: where): a vertex in both by its two positions, one that
+/// appears from where its stand-in at the old level was shown (`old_stand_in`), one that
+/// vanishes to where its stand-in at the new level is shown (`new_stand_in`).
+fn largest_movement(
+    clip: &Mat4,
+    before: &HashMap<u32, Vec3>,
+    now: &HashMap<u32, Vec3>,
+    old_stand_in: impl Fn(u32) -> u32,
+    new_stand_in: impl Fn(u32) -> u32,
+) -> f32 {
+    let moved = |a: Vec3, b: Vec3| match (to_screen(clip, a), to_screen(clip, b)) {
+        (Some(a), Some(b)) => a.distance(b),
+        _ => 0.0,
+    };
+    let mut largest = 0.0f32;
+    for (&g, &p) in now {
+        let was = match before.get(&g) {
+            Some(&q) => q,
+            None => before.get(&old_stand_in(g)).copied().unwrap_or(p),
+        };
+        largest = largest.max(moved(was, p));
+    }
+    for (&g, &q) in before {
+        if !now.contains_key(&g) {
+            let p = now.get(&new_stand_in(g)).copied().unwrap_or(q);
+            largest = largest.max(moved(q, p));
+        }
+    }
+    largest
+}
+
+/// The same path for the mesh refined as one view-dependent model: each frame its level is
+/// fitted to the budget ([`ToleranceSearch`], frustum and back faces), and
+/// `VariableGeomorphs::follow` shows it under the budget. Vertices are counted by position
+/// (the first vertex there), as the collapses name them.
+fn run_variable(scene: &Scene, vm: &VariableMesh, duration: f32, frames: usize) -> Run {
+    let (lo, hi) = scene.mesh.bounds().expect("non-empty");
+    let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
+    let budget = (scene.budget * scene.mesh.triangle_count() as f32) as usize;
+    let pm = vm.mesh();
+    let position_of = weld_positions(&pm.vertices().positions).remap;
+    // Per position: the first collapse that moves it, and onto which.
+    let mut parent = vec![(usize::MAX, 0u32); position_of.len()];
+    for step in (0..vm.collapse_count()).rev() {
+        if let Some([u, w]) = vm.collapse(step) {
+            parent[u as usize] = (step, w);
+        }
+    }
+    let stand_in = |mut p: u32, level: &VariableCache| {
+        while let Some(&(step, to)) = parent.get(p as usize) {
+            if step == usize::MAX || !level.is_performed(step) {
+                break;
+            }
+            p = to;
+        }
+        p
+    };
+    let mut target = VariableCache::new(vm);
+    target
+        .update(vm, &LevelCut(usize::MAX), &any_view())
+        .expect("the coarsest level");
+    let mut morphs = VariableGeomorphs::new(vm, &target, duration);
+    let mut search = ToleranceSearch::default();
+    let criteria = Criteria::default()
+        .with_frustum(true)
+        .with_back_facing(true);
+    let mut out = Run {
+        movement: Vec::new(),
+        over_budget: 0.0,
+        cpu_ms: Vec::new(),
+        bytes: Vec::new(),
+        gpu_bytes: Vec::new(),
+    };
+    let (mut shown, mut level) = (HashMap::new(), morphs.shown().clone());
+    let mut positions = Vec::new();
+    for f in 0..frames {
+        let now = f as f32 * DT;
+        let (clip, _, eye) = camera(f, frames, centre, radius);
+        let view = View::perspective(
+            eye,
+            centre - eye,
+            Vec3::Y,
+            FOV_Y,
+            WIDTH / HEIGHT,
+            0.01 * radius,
+            HEIGHT,
+        )
+        .expect("a valid camera");
+        search
+            .fit(&mut target, vm, &criteria, &view, budget, 0.0)
+            .expect("a fit");
+        let start = Instant::now();
+        let total = morphs
+            .follow(vm, &target, budget, now)
+            .expect("the same mesh");
+        let mut bytes = 0;
+        if morphs.is_morphing() {
+            morphs.write_positions(now, &mut positions);
+            bytes += 24 * positions.len();
+        }
+        out.cpu_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        out.bytes.push(bytes);
+        out.gpu_bytes.push(
+            morphs
+                .take_restarted()
+                .map_or(0, |(lo, hi)| 56 * (hi - lo + 1) as usize),
+        );
+        out.over_budget = out.over_budget.max(total as f32 / budget as f32);
+        let now_shown: HashMap<u32, Vec3> = morphs
+            .shown()
+            .indices()
+            .iter()
+            .map(|&v| (position_of[v as usize], morphs.position(v, now)))
+            .collect();
+        let new_level = morphs.shown();
+        out.movement.push(if f > 0 && f != frames / 2 {
+            largest_movement(
+                &clip,
+                &shown,
+                &now_shown,
+                |p| stand_in(p, &level),
+                |p| stand_in(p, new_level),
+            )
+        } else {
+            0.0
+        });
+        shown = now_shown;
+        level.clone_from(new_level);
+    }
+    out
+}
+
+/// A camera for the criteria that ignore it.
+fn any_view() -> View {
+    View::perspective(Vec3::Z, Vec3::NEG_Z, Vec3::Y, 1.0, 1.0, 0.1, 1.0).expect("a valid camera")
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -241,8 +373,19 @@ fn main() {
         let regions = RegionMesh::build(&scene.mesh, &scene.partition, &BuildOptions::default())
             .expect("builds");
         let obbs: Vec<Obb> = regions.regions().iter().map(Region::obb).collect();
-        for duration in [0.0, 0.25, 1.0] {
-            let r = run(&scene, &regions, &obbs, duration, frames);
+        let options = BuildOptions::default().with_view_dependent(true);
+        let pm = ProgressiveMesh::build(&scene.mesh, &options).expect("builds");
+        let vm = VariableMesh::new(pm).expect("view data");
+        let runs = [false, true]
+            .into_iter()
+            .flat_map(|fine| [(fine, 0.0), (fine, 0.25), (fine, 1.0)]);
+        for (fine, duration) in runs {
+            let r = if fine {
+                run_variable(&scene, &vm, duration, frames)
+            } else {
+                run(&scene, &regions, &obbs, duration, frames)
+            };
+            let name = if fine { " (view-dependent)" } else { "" };
             let mut sorted = r.movement.clone();
             sorted.sort_by(f32::total_cmp);
             let p99 = sorted[(sorted.len() * 99 / 100).min(sorted.len() - 1)];
@@ -250,7 +393,7 @@ fn main() {
             let bytes: Vec<f64> = r.bytes.iter().map(|&b| b as f64).collect();
             let gpu: Vec<f64> = r.gpu_bytes.iter().map(|&b| b as f64).collect();
             println!(
-                "| {} | {duration} s | {:.1} | {over} of {} | {p99:.2} | {:.3} | {:.3} ms, {:.3} ms | {:.0} B, {:.0} B | {:.0} B, {:.0} B |",
+                "| {}{name} | {duration} s | {:.1} | {over} of {} | {p99:.2} | {:.3} | {:.3} ms, {:.3} ms | {:.0} B, {:.0} B | {:.0} B, {:.0} B |",
                 scene.name,
                 sorted.last().copied().unwrap_or(0.0),
                 r.movement.len(),
