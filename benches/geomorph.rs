@@ -324,7 +324,9 @@ fn run_variable(scene: &Scene, vm: &VariableMesh, duration: f32, frames: usize) 
         out.gpu_bytes.push(
             morphs
                 .take_restarted()
-                .map_or(0, |(lo, hi)| 56 * (hi - lo + 1) as usize),
+                .iter()
+                .map(|&(lo, hi)| 56 * (hi - lo + 1) as usize)
+                .sum(),
         );
         out.over_budget = out.over_budget.max(total as f32 / budget as f32);
         let now_shown: HashMap<u32, Vec3> = morphs

@@ -599,7 +599,7 @@ fn a_gpu_copy_of_variable_morphs_shows_what_the_cpu_does() {
         now += rng.unit() * 0.3;
         random_target(&vm, &mesh, &mut target, &mut rng);
         morphs.follow(&vm, &target, usize::MAX, now).unwrap();
-        if let Some((lo, hi)) = morphs.take_restarted() {
+        for (lo, hi) in morphs.take_restarted() {
             for v in lo..=hi {
                 gpu[v as usize] = morphs.vertex_morph(v);
             }

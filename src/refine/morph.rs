@@ -289,18 +289,26 @@ impl VariableGeomorphs {
         self.motion.vertex_morph(v)
     }
 
-    /// The run of vertices (first and last) that a morph started or restarted on since the
-    /// last call: what a GPU copy of [`vertex_morph`](Self::vertex_morph) must take again.
-    pub fn take_restarted(&mut self) -> Option<(u32, u32)> {
-        let mut run: Option<(u32, u32)> = None;
+    /// The runs of vertices (first and last, in order) that a morph started or restarted on
+    /// since the last call: what a GPU copy of [`vertex_morph`](Self::vertex_morph) must take
+    /// again. Runs less than 16 vertices apart are one.
+    pub fn take_restarted(&mut self) -> Vec<(u32, u32)> {
+        const GAP: u32 = 16;
+        let mut vertices = Vec::new();
         self.motion.take_restarted(|motion, restarted| {
             for &p in restarted {
-                for &v in motion.tables.copies_of(p) {
-                    run = Some(run.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))));
-                }
+                vertices.extend_from_slice(motion.tables.copies_of(p));
             }
         });
-        run
+        vertices.sort_unstable();
+        let mut runs: Vec<(u32, u32)> = Vec::new();
+        for v in vertices {
+            match runs.last_mut() {
+                Some((_, hi)) if v <= *hi + GAP => *hi = v,
+                _ => runs.push((v, v)),
+            }
+        }
+        runs
     }
 
     /// Writes where every vertex of the mesh is shown at `now` into `out`.
