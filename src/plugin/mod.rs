@@ -335,7 +335,8 @@ pub struct MultiresModel(pub Handle<MultiresMesh>);
 /// from the CPU each frame they move. Skinned models blend their moving vertices in
 /// `Deform`, from where the morphs show them in the bind pose.
 ///
-/// **Partial:** [`ViewDependent`] models change levels at once.
+/// [`ViewDependent`] models morph between their variable-resolution levels
+/// (`refine::VariableGeomorphs`) the same way, collapse by collapse.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Default)]
 pub struct Geomorph(pub f32);
@@ -425,14 +426,21 @@ struct MorphState {
     /// Per region: its vertices moved last frame (so it is written once more at rest), or
     /// (on the GPU) must all be written again.
     moved: Vec<bool>,
-    /// Per region: a run of vertices to write into its mesh from vertex `first` (`ready`
-    /// when new): positions and normals, and on the GPU the morph attributes.
-    first: Vec<u32>,
-    positions: Vec<Vec<glam::Vec3>>,
-    normals: Vec<Vec<glam::Vec3>>,
-    from: Vec<Vec<[f32; 4]>>,
-    normal_from: Vec<Vec<[f32; 4]>>,
-    ready: Vec<bool>,
+    /// Per region: the vertices `Upload` writes into its mesh.
+    runs: Vec<VertexRun>,
+}
+
+/// A run of a mesh's vertices that `Upload` writes under geomorphs, from vertex `first`
+/// (`ready` when new): positions and normals, and on the GPU the morph attributes (empty:
+/// written from the CPU, at rest).
+#[derive(Clone, Debug, Default)]
+struct VertexRun {
+    first: u32,
+    positions: Vec<glam::Vec3>,
+    normals: Vec<glam::Vec3>,
+    from: Vec<[f32; 4]>,
+    normal_from: Vec<[f32; 4]>,
+    ready: bool,
 }
 
 /// Where a model's regions sat in the last allocation that included it.
@@ -513,7 +521,7 @@ impl MultiresInstance {
     #[must_use]
     pub fn triangle_count(&self) -> usize {
         match &self.fine {
-            Some(fine) => fine.triangle_count(),
+            Some(fine) => fine.shown_count(),
             None => self.caches.total_triangles(),
         }
     }

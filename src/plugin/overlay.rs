@@ -57,11 +57,7 @@ fn region_boxes<'a>(
     let skinned = instance.skinned_world_boxes();
     let fine = instance.fine.as_ref().map(|fine| {
         let pm = fine.mesh.mesh();
-        let (lo, hi, count) = (
-            pm.min_triangles(),
-            pm.max_triangles(),
-            fine.triangle_count(),
-        );
+        let (lo, hi, count) = (pm.min_triangles(), pm.max_triangles(), fine.shown_count());
         let t = if hi > lo {
             count.saturating_sub(lo) as f32 / (hi - lo) as f32
         } else {

@@ -1,9 +1,10 @@
 //! View-dependent models: a [`MultiresModel`](super::MultiresModel) refined every frame as one
 //! variable-resolution mesh (the [`refine`](crate::refine) module) instead of by regions.
 
-use super::StagedIndices;
+use super::{StagedIndices, VertexRun};
 use crate::refine::{
-    Criteria, LevelCut, ScreenSpaceError, ToleranceSearch, VariableCache, VariableMesh, View,
+    Criteria, LevelCut, ScreenSpaceError, ToleranceSearch, VariableCache, VariableGeomorphs,
+    VariableMesh, View,
 };
 use bevy::asset::AssetId;
 use bevy::mesh::Indices;
@@ -99,7 +100,9 @@ pub struct VariableLevel;
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[non_exhaustive]
 pub struct Refinement {
-    /// Triangles shown.
+    /// Triangles of the level it refined to (under [`Geomorph`](super::Geomorph), the level
+    /// shown reaches it within the morph time: [`MultiresInstance::triangle_count`](super::MultiresInstance::triangle_count)
+    /// is what is shown).
     pub triangles: usize,
     /// The count the allocation gave it this frame (budgeted models), else `None`.
     pub allocated: Option<u32>,
@@ -155,6 +158,25 @@ pub(super) struct FineState {
     /// Any view: the criteria that ignore it still take one.
     any_view: View,
     warned_tolerance: bool,
+    /// Under [`Geomorph`](super::Geomorph): the level shown, following `cache`.
+    pub(super) morph: Option<FineMorph>,
+}
+
+/// A view-dependent model's geomorphs: the level shown follows the refined one.
+#[derive(Debug)]
+pub(super) struct FineMorph {
+    pub(super) morphs: VariableGeomorphs,
+    /// The material interpolates on the GPU: a vertex is written when a morph starts on it.
+    pub(super) gpu: bool,
+    /// The mesh has the morph attributes (added once, by `Upload`).
+    pub(super) attributes: bool,
+    /// On the CPU: the vertices moved last frame (written once more at rest); on the GPU:
+    /// every vertex must be written again.
+    pub(super) moved: bool,
+    /// `SelectLod`'s first pass: the triangles the level shown would add to reach the target.
+    pub(super) wanted: u32,
+    /// The runs of vertices `Upload` writes (one, at rest, on the CPU path).
+    pub(super) runs: Vec<VertexRun>,
 }
 
 impl FineState {
@@ -191,6 +213,92 @@ impl FineState {
             report: Refinement::default(),
             any_view,
             warned_tolerance: false,
+            morph: None,
+        }
+    }
+
+    /// Starts, changes or ends the model's geomorphs (`seconds`, `0`: none): a new or
+    /// changed morph shows the refined level as it is; an ended one writes every vertex once
+    /// more at rest before it goes (`Upload`).
+    pub(super) fn sync_morph(&mut self, seconds: f32, gpu: bool) {
+        // (NaN and negative times are off, as `VariableGeomorphs` takes them.)
+        let seconds = if seconds > 0.0 { seconds } else { 0.0 };
+        let fresh = |duration: f32| VariableGeomorphs::new(&self.mesh, &self.cache, duration);
+        match &mut self.morph {
+            None if seconds > 0.0 => {
+                self.morph = Some(FineMorph {
+                    morphs: fresh(seconds),
+                    gpu,
+                    attributes: false,
+                    moved: gpu,
+                    wanted: 0,
+                    runs: Vec::new(),
+                });
+            }
+            Some(m) if m.morphs.duration() != seconds || (seconds > 0.0 && m.gpu != gpu) => {
+                m.morphs = fresh(seconds);
+                m.gpu = gpu && seconds > 0.0;
+                m.moved = true;
+            }
+            _ => {}
+        }
+    }
+
+    /// `SelectLod`'s first pass, after [`select`](Self::select) (or `Allocate`, for a model
+    /// with only a pixel tolerance) moved the refined level: under geomorphs, lands what
+    /// arrived and starts what the level changed (its refinements wait for
+    /// [`finish_morph`](Self::finish_morph)); without, stages the level. Returns the
+    /// triangles shown.
+    pub(super) fn begin_morph(&mut self, now: f32) -> usize {
+        let Some(m) = &mut self.morph else {
+            self.stage_indices();
+            return self.cache.triangle_count();
+        };
+        match m.morphs.begin(&self.mesh, &self.cache, now) {
+            Ok(wanted) => m.wanted = u32::try_from(wanted).unwrap_or(u32::MAX),
+            Err(e) => warn_once!("a view-dependent model keeps its level: {e}"),
+        }
+        m.morphs.shown().triangle_count()
+    }
+
+    /// `SelectLod`'s second pass under geomorphs: refines the level shown by at most
+    /// `granted` triangles and stages it. Returns the triangles shown.
+    pub(super) fn finish_morph(&mut self, granted: u32, now: f32) -> usize {
+        if let Some(m) = &mut self.morph
+            && let Err(e) = m
+                .morphs
+                .grant(&self.mesh, &self.cache, granted as usize, now)
+        {
+            warn_once!("a view-dependent model keeps its level: {e}");
+        }
+        self.stage_indices();
+        self.shown_count()
+    }
+
+    /// Triangles drawn: the level shown under geomorphs, else the refined one.
+    pub(super) fn shown_count(&self) -> usize {
+        self.morph
+            .as_ref()
+            .map_or(self.cache.triangle_count(), |m| {
+                m.morphs.shown().triangle_count()
+            })
+    }
+
+    /// Copies the level drawn into `staged` when it changed.
+    fn stage_indices(&mut self) {
+        let shown = match &mut self.morph {
+            Some(m) if m.morphs.shown().is_changed() => {
+                let shown = m.morphs.shown().indices();
+                stage(&mut self.staged, shown);
+                m.morphs.clear_changed();
+                return;
+            }
+            Some(_) => return,
+            None => &mut self.cache,
+        };
+        if shown.is_changed() {
+            stage(&mut self.staged, shown.indices());
+            shown.clear_changed();
         }
     }
 
@@ -202,7 +310,7 @@ impl FineState {
         self.warned_tolerance = false;
     }
 
-    /// Triangles shown.
+    /// Triangles of the refined level.
     pub(super) fn triangle_count(&self) -> usize {
         self.cache.triangle_count()
     }
@@ -231,8 +339,7 @@ impl FineState {
         }
     }
 
-    /// Moves the level to this frame's goal and stages its index buffer when it changed.
-    /// Returns the triangles shown.
+    /// Moves the refined level to this frame's goal. Returns its triangles.
     pub(super) fn select(&mut self) -> usize {
         let floor = self.floor();
         let mesh = &*self.mesh;
@@ -313,21 +420,21 @@ impl FineState {
         }
         report.triangles = self.cache.triangle_count();
         self.report = report;
-        if self.cache.is_changed() {
-            let indices = self.cache.indices();
-            match &mut self.staged.indices {
-                Indices::U16(buffer) => {
-                    buffer.clear();
-                    buffer.extend(indices.iter().map(|&i| i as u16));
-                }
-                Indices::U32(buffer) => {
-                    buffer.clear();
-                    buffer.extend_from_slice(indices);
-                }
-            }
-            self.staged.ready = true;
-            self.cache.clear_changed();
-        }
         report.triangles
     }
+}
+
+/// `indices` into `staged`, in its index type, ready for `Upload`.
+fn stage(staged: &mut StagedIndices, indices: &[u32]) {
+    match &mut staged.indices {
+        Indices::U16(buffer) => {
+            buffer.clear();
+            buffer.extend(indices.iter().map(|&i| i as u16));
+        }
+        Indices::U32(buffer) => {
+            buffer.clear();
+            buffer.extend_from_slice(indices);
+        }
+    }
+    staged.ready = true;
 }

@@ -1,13 +1,14 @@
 //! The plugin's systems, one per step of the runtime loop.
 
-use super::refine::{FineState, Goal, RefineCamera, VariableLevel, ViewDependent};
+use super::refine::{FineMorph, FineState, Goal, RefineCamera, VariableLevel, ViewDependent};
 use super::render::{self, RegionUpload, RenderWrites};
 use super::skin::{self, MultiresSkin, SkinState, initial_region_mesh};
 use super::tasks::{ComputePool, par_chunks};
 use super::{
     ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, AslodStats, AslodSystems, AslodViewport,
     CountInBudget, FullDetail, Geomorph, GpuGeomorph, InputRun, LodPriority, LodRegion, MorphState,
-    MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, StagedIndices, diagnostics,
+    MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, StagedIndices, VertexRun,
+    diagnostics,
 };
 use crate::bevy_mesh::to_bevy_mesh;
 use crate::budget::{Allocator, Obb, ProjectedAreaCamera, RegionInput};
@@ -844,6 +845,11 @@ fn select_lod(
             if seconds > 0.0 || instance.morph.is_some() {
                 sync_geomorph(&mut instance, seconds, gpu);
             }
+            if let Some(fine) = &mut instance.fine
+                && (seconds > 0.0 || fine.morph.is_some())
+            {
+                fine.sync_morph(seconds, gpu);
+            }
             instance
         })
         .collect();
@@ -867,14 +873,17 @@ fn select_lod(
                     .copied()
                     .filter(|_| this_frame && fine.settings.budgeted);
                 // Tolerance-only models were refined in `Allocate`.
-                let shown = if fine.settings.budgeted {
-                    fine.select()
-                } else {
-                    fine.triangle_count()
-                } as u64;
+                if fine.settings.budgeted {
+                    fine.select();
+                }
+                let target = fine.triangle_count() as u64;
+                let shown = fine.begin_morph(now) as u64;
+                // Under geomorphs its refinements and vertices wait for the second pass.
+                let deferred = fine.morph.is_some();
                 instance.shown = shown;
                 instance.settled = false;
-                sums.add(shown, shown);
+                sums.add(shown, target);
+                sums.deferred += if deferred { shown } else { 0 };
                 continue;
             }
             let run = counts
@@ -941,19 +950,33 @@ fn select_lod(
     // first: the triangles shown never exceed what the allocation gave all models together.
     let mut free = sums.target.saturating_sub(sums.shown);
     let mut wanted: Vec<(u32, u32, u32)> = Vec::new();
+    // (A view-dependent model asks as region `FINE`.)
+    const FINE: u32 = u32::MAX;
     for (i, instance) in instances.iter().enumerate() {
         if let Some(morph) = &instance.morph
             && morph.second_pass
         {
             wanted.extend(morph.refine.iter().map(|&(r, n)| (n, i as u32, r)));
         }
+        if let Some(m) = instance.fine.as_ref().and_then(|f| f.morph.as_ref())
+            && m.wanted > 0
+        {
+            wanted.push((m.wanted, i as u32, FINE));
+        }
     }
     wanted.sort_unstable_by(|a, b| b.cmp(a));
     for (n, i, r) in wanted {
         let grant = u64::from(n).min(free);
         free -= grant;
-        if let Some(morph) = &mut instances[i as usize].morph {
-            morph.grants.push((r, grant as u32));
+        let instance = &mut *instances[i as usize];
+        match (&mut instance.fine, &mut instance.morph) {
+            (Some(fine), _) if r == FINE => {
+                if let Some(m) = &mut fine.morph {
+                    m.wanted = grant as u32;
+                }
+            }
+            (_, Some(morph)) => morph.grants.push((r, grant as u32)),
+            _ => {}
         }
     }
     // Second pass: the geomorph models' refinements, morphs and index buffers.
@@ -961,6 +984,22 @@ fn select_lod(
         let mut triangles = 0u64;
         for instance in chunk {
             let instance = &mut **instance;
+            if let Some(fine) = &mut instance.fine
+                && fine.morph.is_some()
+            {
+                // What it wanted, now what it was granted (nothing when it wanted nothing).
+                let granted = fine
+                    .morph
+                    .as_mut()
+                    .map_or(0, |m| std::mem::take(&mut m.wanted));
+                instance.shown = fine.finish_morph(granted, now) as u64;
+                triangles += instance.shown;
+                let n = fine.mesh.mesh().vertices().vertex_count();
+                if let Some(m) = &mut fine.morph {
+                    stage_fine_vertices(m, n, clock);
+                }
+                continue;
+            }
             let Some(morph) = &mut instance.morph else {
                 continue;
             };
@@ -1069,12 +1108,7 @@ fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32, gpu: bool) {
                 gpu,
                 attributes: false,
                 moved: vec![gpu; n],
-                first: vec![0; n],
-                positions: vec![Vec::new(); n],
-                normals: vec![Vec::new(); n],
-                from: vec![Vec::new(); n],
-                normal_from: vec![Vec::new(); n],
-                ready: vec![false; n],
+                runs: vec![VertexRun::default(); n],
             });
             instance.settled = false;
         }
@@ -1092,6 +1126,37 @@ fn sync_geomorph(instance: &mut MultiresInstance, seconds: f32, gpu: bool) {
             instance.settled = false;
         }
         _ => {}
+    }
+}
+
+/// Stages the vertices of a view-dependent model's level (`n` of them) for `Upload`, as
+/// [`MorphState::stage`] does for a region.
+fn stage_fine_vertices(m: &mut FineMorph, n: usize, clock: Clock) {
+    let restarted = m.morphs.take_restarted();
+    if !m.gpu {
+        let moving = m.morphs.is_morphing();
+        if moving || m.moved {
+            m.runs.resize_with(1, VertexRun::default);
+            let run = &mut m.runs[0];
+            m.morphs.write_positions(clock.now, &mut run.positions);
+            m.morphs.write_normals(clock.now, &mut run.normals);
+            run.at_rest();
+        }
+        m.moved = moving;
+        return;
+    }
+    let runs = if std::mem::take(&mut m.moved) {
+        vec![(0, n.saturating_sub(1) as u32)]
+    } else {
+        restarted
+    };
+    if n == 0 || runs.is_empty() {
+        return;
+    }
+    m.runs.resize_with(runs.len(), VertexRun::default);
+    for (run, (lo, hi)) in m.runs.iter_mut().zip(runs) {
+        let morphs = (lo..=hi).map(|v| m.morphs.vertex_morph(v));
+        run.stage_morphs(lo, morphs, m.morphs.duration(), clock);
     }
 }
 
@@ -1113,25 +1178,17 @@ impl MorphState {
             for r in 0..self.moved.len() {
                 let moving = self.morphs.is_region_moving(regions, r);
                 if moving || self.moved[r] {
+                    let run = &mut self.runs[r];
                     self.morphs
-                        .write_positions(regions, r, now, &mut self.positions[r]);
-                    self.morphs
-                        .write_normals(regions, r, now, &mut self.normals[r]);
-                    self.first[r] = 0;
-                    self.from[r].clear();
-                    self.normal_from[r].clear();
-                    self.ready[r] = true;
+                        .write_positions(regions, r, now, &mut run.positions);
+                    self.morphs.write_normals(regions, r, now, &mut run.normals);
+                    run.at_rest();
                 }
                 self.moved[r] = moving;
             }
             return;
         }
         let duration = self.morphs.duration();
-        let inv = if duration > 0.0 {
-            duration.recip()
-        } else {
-            0.0
-        };
         for (r, run) in self.morphs.take_restarted(regions).into_iter().enumerate() {
             let global = regions.regions()[r].global_vertices();
             let run = if std::mem::take(&mut self.moved[r]) {
@@ -1142,24 +1199,97 @@ impl MorphState {
             let Some((lo, hi)) = run.filter(|_| !global.is_empty()) else {
                 continue;
             };
-            let (positions, normals) = (&mut self.positions[r], &mut self.normals[r]);
-            let (from, normal_from) = (&mut self.from[r], &mut self.normal_from[r]);
-            positions.clear();
-            normals.clear();
-            from.clear();
-            normal_from.clear();
-            for &g in &global[lo as usize..=hi as usize] {
-                let m = self.morphs.vertex_morph(g);
-                // The start on the shaders' clock: as long ago as on the CPU's.
-                let start = clock.shader - (now - m.start);
-                positions.push(m.to);
-                normals.push(m.normal_to);
-                from.push(m.from.extend(start).to_array());
-                normal_from.push(m.normal_from.extend(inv).to_array());
-            }
-            self.first[r] = lo;
-            self.ready[r] = true;
+            let vertices = global[lo as usize..=hi as usize].iter().copied();
+            self.runs[r].stage_morphs(
+                lo,
+                vertices.map(|g| self.morphs.vertex_morph(g)),
+                duration,
+                clock,
+            );
         }
+    }
+}
+
+impl VertexRun {
+    /// The positions and normals written are the whole mesh's, drawn as they are.
+    fn at_rest(&mut self) {
+        self.first = 0;
+        self.from.clear();
+        self.normal_from.clear();
+        self.ready = true;
+    }
+
+    /// Stages the vertices from `first` on with their morphs (`duration` seconds), for a
+    /// material that interpolates them.
+    fn stage_morphs(
+        &mut self,
+        first: u32,
+        morphs: impl Iterator<Item = crate::regions::VertexMorph>,
+        duration: f32,
+        clock: Clock,
+    ) {
+        let inv = if duration > 0.0 {
+            duration.recip()
+        } else {
+            0.0
+        };
+        self.positions.clear();
+        self.normals.clear();
+        self.from.clear();
+        self.normal_from.clear();
+        for m in morphs {
+            // The start on the shaders' clock: as long ago as on the CPU's.
+            let start = clock.shader - (clock.now - m.start);
+            self.positions.push(m.to);
+            self.normals.push(m.normal_to);
+            self.from.push(m.from.extend(start).to_array());
+            self.normal_from.push(m.normal_from.extend(inv).to_array());
+        }
+        self.first = first;
+        self.ready = true;
+    }
+
+    /// Writes the run into `mesh`; returns the vertices written (first and last), or `None`
+    /// when nothing was new or the mesh lacks room for it.
+    fn write(&mut self, mesh: &mut Mesh) -> Option<[u32; 2]> {
+        if !std::mem::take(&mut self.ready) {
+            return None;
+        }
+        let (first, n) = (self.first as usize, self.positions.len());
+        let mut written = true;
+        for (attribute, values) in [
+            (Mesh::ATTRIBUTE_POSITION, &self.positions),
+            (Mesh::ATTRIBUTE_NORMAL, &self.normals),
+        ] {
+            if let Ok(Some(VertexAttributeValues::Float32x3(slots))) =
+                mesh.try_attribute_mut_option(attribute)
+                && let Some(slots) = slots.get_mut(first..first + values.len())
+            {
+                for (slot, v) in slots.iter_mut().zip(values) {
+                    *slot = v.to_array();
+                }
+            }
+        }
+        for (attribute, values) in [
+            (ATTRIBUTE_MORPH_FROM, &self.from),
+            (ATTRIBUTE_MORPH_NORMAL_FROM, &self.normal_from),
+        ] {
+            let slots = match mesh.try_attribute_mut_option(attribute) {
+                Ok(Some(VertexAttributeValues::Float32x4(slots))) => slots,
+                _ => continue,
+            };
+            if values.is_empty() {
+                // Written from the CPU: the morph attributes say "at rest".
+                for (slot, p) in slots.iter_mut().skip(first).zip(&self.positions) {
+                    *slot = p.extend(0.0).to_array();
+                }
+            } else if let Some(slots) = slots.get_mut(first..first + values.len()) {
+                slots.copy_from_slice(values);
+            } else {
+                written = false;
+            }
+        }
+        (n > 0 && written).then(|| [first as u32, (first + n) as u32 - 1])
     }
 }
 
@@ -1391,8 +1521,8 @@ fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget, swa
         }
         morph.attributes = true;
     }
-    for r in 0..morph.ready.len() {
-        if !std::mem::take(&mut morph.ready[r]) {
+    for (r, run) in morph.runs.iter_mut().enumerate() {
+        if !run.ready {
             continue;
         }
         let Some(&id) = instance.mesh_ids.get(r) else {
@@ -1401,48 +1531,42 @@ fn upload_morphs(instance: &mut MultiresInstance, target: &mut UploadTarget, swa
         let Some(mesh) = target.mesh(id) else {
             continue;
         };
-        let (first, n) = (morph.first[r] as usize, morph.positions[r].len());
-        let mut written = true;
-        for (attribute, values) in [
-            (Mesh::ATTRIBUTE_POSITION, &morph.positions[r]),
-            (Mesh::ATTRIBUTE_NORMAL, &morph.normals[r]),
-        ] {
-            if let Ok(Some(VertexAttributeValues::Float32x3(slots))) =
-                mesh.try_attribute_mut_option(attribute)
-                && let Some(slots) = slots.get_mut(first..first + values.len())
-            {
-                for (slot, v) in slots.iter_mut().zip(values) {
-                    *slot = v.to_array();
-                }
-            }
-        }
-        for (attribute, values) in [
-            (ATTRIBUTE_MORPH_FROM, &morph.from[r]),
-            (ATTRIBUTE_MORPH_NORMAL_FROM, &morph.normal_from[r]),
-        ] {
-            let slots = match mesh.try_attribute_mut_option(attribute) {
-                Ok(Some(VertexAttributeValues::Float32x4(slots))) => slots,
-                _ => continue,
-            };
-            if values.is_empty() {
-                // Written from the CPU: the morph attributes say "at rest".
-                for (slot, p) in slots.iter_mut().skip(first).zip(&morph.positions[r]) {
-                    *slot = p.extend(0.0).to_array();
-                }
-            } else if let Some(slots) = slots.get_mut(first..first + values.len()) {
-                slots.copy_from_slice(values);
-            } else {
-                written = false;
-            }
-        }
-        if n > 0 && written && !relayout {
+        if let Some(written) = run.write(mesh)
+            && !relayout
+        {
             // (A region whose indices changed too was counted whole already.)
             let counted = swapped.contains(&(r as u32));
-            target.vertices_changed(id, &[first as u32, (first + n) as u32 - 1], counted);
+            target.vertices_changed(id, &written, counted);
         }
     }
     if morph.morphs.duration() == 0.0 && !morph.moved.contains(&true) {
         instance.morph = None;
+    }
+}
+
+/// Writes a view-dependent model's staged vertices (`upload_morphs` for its one mesh);
+/// `swapped`: its indices were written this frame.
+fn upload_fine_morph(fine: &mut FineState, target: &mut UploadTarget, swapped: bool) {
+    let Some(m) = &mut fine.morph else {
+        return;
+    };
+    let relayout = m.gpu && !m.attributes;
+    if relayout && let Some(mesh) = target.meshes.get_mut(fine.id) {
+        add_morph_attributes(mesh.into_inner());
+        m.attributes = true;
+    }
+    for (i, run) in m.runs.iter_mut().enumerate() {
+        if run.ready
+            && let Some(mesh) = target.mesh(fine.id)
+            && let Some(written) = run.write(mesh)
+            && !relayout
+        {
+            // (Counted whole once, when its indices changed too or by the first run.)
+            target.vertices_changed(fine.id, &written, swapped || i > 0);
+        }
+    }
+    if m.morphs.duration() == 0.0 && !m.moved {
+        fine.morph = None;
     }
 }
 
@@ -1494,13 +1618,16 @@ fn upload(
     };
     for mut instance in &mut models {
         let instance = &mut *instance;
-        if let Some(fine) = &mut instance.fine
-            && std::mem::take(&mut fine.staged.ready)
-            && let Some(mesh) = target.mesh(fine.id)
-            && swap_staged(mesh, &mut fine.staged.indices)
-        {
-            changed += 1;
-            target.indices_changed(fine.id, fine.entity);
+        if let Some(fine) = &mut instance.fine {
+            let swapped = std::mem::take(&mut fine.staged.ready)
+                && target
+                    .mesh(fine.id)
+                    .is_some_and(|mesh| swap_staged(mesh, &mut fine.staged.indices));
+            if swapped {
+                changed += 1;
+                target.indices_changed(fine.id, fine.entity);
+            }
+            upload_fine_morph(fine, &mut target, swapped);
         }
         changed += upload_skinned(instance, &mut target);
         // Only the regions `SelectLod` wrote: their staging slots and meshes.

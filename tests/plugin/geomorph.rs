@@ -1,6 +1,7 @@
 //! Geomorphs in the plugin: a camera cut makes the cow's regions change level over the
 //! morph time instead of at once; the budget holds in every frame; at rest every region
-//! mesh is back at its own vertex positions; removing `Geomorph` ends the morphs.
+//! mesh is back at its own vertex positions; removing `Geomorph` ends the morphs;
+//! view-dependent models morph too.
 
 use super::models::app;
 use bevy::mesh::VertexAttributeValues;
@@ -8,7 +9,7 @@ use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_aslod::plugin::{
     ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, AslodStats, GpuGeomorph, MultiresInstance,
-    MultiresMesh, MultiresModel,
+    MultiresMesh, MultiresModel, ViewDependent,
 };
 use bevy_aslod::prelude::*;
 use bevy_aslod::regions::Partition;
@@ -300,4 +301,123 @@ fn models_sharing_the_budget_never_show_more_than_it_during_morphs() {
     // Each cut: the coarsenings start (their triangles still shown), land a morph time later,
     // and only then the refinements that waited for them take the triangles.
     assert!(changes >= 6, "the shown count changed in {changes} frames");
+}
+
+/// The vertex positions of a view-dependent model's level mesh and its indices.
+fn level_mesh(app: &App, model: Entity) -> Mesh {
+    let level = app
+        .world()
+        .get::<MultiresInstance>(model)
+        .and_then(MultiresInstance::variable_level_entity)
+        .expect("a level child");
+    let handle = &app.world().get::<Mesh3d>(level).expect("a mesh").0;
+    app.world()
+        .resource::<Assets<Mesh>>()
+        .get(handle)
+        .expect("the level mesh")
+        .clone()
+}
+
+fn positions(mesh: &Mesh) -> Vec<Vec3> {
+    match mesh.attribute(Mesh::ATTRIBUTE_POSITION) {
+        Some(VertexAttributeValues::Float32x3(p)) => p.iter().map(|&p| Vec3::from(p)).collect(),
+        _ => panic!("positions"),
+    }
+}
+
+/// A view-dependent model under geomorphs, written from the CPU and interpolated on the GPU
+/// (an app each): across a camera cut the budget holds in every frame, the triangles drawn
+/// are the ones counted, the GPU draws what the CPU writes, the vertices move for about the
+/// morph time and then rest at their own places on the refined level.
+#[test]
+fn view_dependent_geomorphs_stay_in_the_budget_and_come_to_rest() {
+    let asset = super::view_dependent::cow();
+    let own = asset
+        .variable()
+        .expect("refinement data")
+        .mesh()
+        .vertices()
+        .positions
+        .clone();
+    let mut apps = [false, true].map(|on_gpu| {
+        let (mut app, handle) = morph_app(&asset);
+        let mut model = app.world_mut().spawn((
+            MultiresModel(handle),
+            ViewDependent::default(),
+            Geomorph(T),
+            Transform::default(),
+        ));
+        if on_gpu {
+            model.insert(GpuGeomorph);
+        }
+        let model = model.id();
+        let camera = app
+            .world_mut()
+            .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 60.0)))
+            .id();
+        for _ in 0..60 {
+            app.update();
+        }
+        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+            Transform::from_xyz(4.0, 1.0, 4.0).looking_at(Vec3::new(3.0, 0.0, 0.0), Vec3::Y);
+        (app, model)
+    });
+    let [(cpu_app, cpu), (gpu_app, gpu)] = &mut apps;
+    let mut moving = 0;
+    for frame in 0..60 {
+        cpu_app.update();
+        gpu_app.update();
+        for app in [&*cpu_app, &*gpu_app] {
+            let shown = app.world().resource::<AslodStats>().triangles;
+            assert!(
+                shown <= u64::from(BUDGET),
+                "frame {frame}: {shown} triangles"
+            );
+        }
+        let (c, g) = (level_mesh(cpu_app, *cpu), level_mesh(gpu_app, *gpu));
+        let indices: Vec<usize> = c.indices().unwrap().iter().collect();
+        assert_eq!(
+            indices,
+            g.indices().unwrap().iter().collect::<Vec<_>>(),
+            "frame {frame}: the two models show other levels"
+        );
+        let counted = app_instance(cpu_app, *cpu).triangle_count();
+        assert_eq!(
+            3 * counted,
+            indices.len(),
+            "frame {frame}: drawn is counted"
+        );
+        let time = gpu_app.world().resource::<Time>().elapsed_secs_wrapped();
+        let (written, drawn) = (positions(&c), drawn_on_gpu(&g, time));
+        for &i in &indices {
+            let d = drawn[i].distance(written[i]);
+            assert!(
+                d < 1e-4,
+                "frame {frame}, vertex {i}: drawn {d} away from the CPU's"
+            );
+        }
+        moving += usize::from(indices.iter().any(|&i| written[i] != own[i]));
+    }
+    assert!(
+        (10..=40).contains(&moving),
+        "vertices moved in {moving} frames"
+    );
+    let instance = app_instance(cpu_app, *cpu);
+    let refined = instance.refinement().expect("refined").triangles;
+    assert_eq!(
+        instance.triangle_count(),
+        refined,
+        "at rest on the refined level"
+    );
+    assert_eq!(
+        positions(&level_mesh(cpu_app, *cpu)),
+        own,
+        "at rest at their own places"
+    );
+}
+
+fn app_instance(app: &App, model: Entity) -> &MultiresInstance {
+    app.world()
+        .get::<MultiresInstance>(model)
+        .expect("instance")
 }

@@ -15,7 +15,7 @@ use super::models::{app, spawn_model as model};
 const MESHES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/testdata/meshes/");
 
 /// The cow in 8 clusters, with the refinement data (about 10 units long, 6 high).
-fn cow() -> MultiresMesh {
+pub(super) fn cow() -> MultiresMesh {
     let (mesh, _) = IndexedMesh::load(format!("{MESHES}cow.obj")).expect("cow.obj loads");
     let partition = PartitionSpec::Clusters(8)
         .partition(&mesh)
