@@ -104,6 +104,7 @@ fn to_screen(clip: &Mat4, p: Vec3) -> Option<Vec2> {
 }
 
 /// What one run along the path measured.
+#[derive(Default)]
 struct Run {
     /// Per frame: the largest movement in pixels.
     movement: Vec<f32>,
@@ -135,13 +136,7 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
     let mut levels: Vec<usize> = (0..regions.regions().len())
         .map(|r| caches.level(r))
         .collect();
-    let mut out = Run {
-        movement: Vec::new(),
-        over_budget: 0.0,
-        cpu_ms: Vec::new(),
-        bytes: Vec::new(),
-        gpu_bytes: Vec::new(),
-    };
+    let mut out = Run::default();
     let mut part = Vec::new();
     let mut positions = Vec::new();
     for f in 0..frames {
@@ -201,17 +196,14 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
             .collect();
         let stand_in =
             |g: u32, levels: &[usize]| morphs.stand_in(g, levels[region_of[g as usize] as usize]);
-        out.movement.push(if f > 0 && f != frames / 2 {
-            largest_movement(
-                &clip,
-                &shown,
-                &now_shown,
-                |g| stand_in(g, &levels),
-                |g| stand_in(g, &new_levels),
-            )
-        } else {
-            0.0
-        });
+        out.movement.push(largest_movement(
+            (f, frames),
+            &clip,
+            &shown,
+            &now_shown,
+            |g| stand_in(g, &levels),
+            |g| stand_in(g, &new_levels),
+        ));
         shown = now_shown;
         levels = new_levels;
     }
@@ -221,8 +213,10 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
 /// The largest screen movement of a vertex between the frame that showed `before` and the
 /// one that shows `now` (vertex: where): a vertex in both by its two positions, one that
 /// appears from where its stand-in at the old level was shown (`old_stand_in`), one that
-/// vanishes to where its stand-in at the new level is shown (`new_stand_in`).
+/// vanishes to where its stand-in at the new level is shown (`new_stand_in`). `0` on the
+/// first frame and at the cut (`(frame, frames)`).
 fn largest_movement(
+    (f, frames): (usize, usize),
     clip: &Mat4,
     before: &HashMap<u32, Vec3>,
     now: &HashMap<u32, Vec3>,
@@ -234,6 +228,9 @@ fn largest_movement(
         _ => 0.0,
     };
     let mut largest = 0.0f32;
+    if f == 0 || f == frames / 2 {
+        return largest;
+    }
     for (&g, &p) in now {
         let was = match before.get(&g) {
             Some(&q) => q,
@@ -285,13 +282,7 @@ fn run_variable(scene: &Scene, vm: &VariableMesh, duration: f32, frames: usize) 
     let criteria = Criteria::default()
         .with_frustum(true)
         .with_back_facing(true);
-    let mut out = Run {
-        movement: Vec::new(),
-        over_budget: 0.0,
-        cpu_ms: Vec::new(),
-        bytes: Vec::new(),
-        gpu_bytes: Vec::new(),
-    };
+    let mut out = Run::default();
     let (mut shown, mut level) = (HashMap::new(), morphs.shown().clone());
     let mut positions = Vec::new();
     for f in 0..frames {
@@ -336,17 +327,14 @@ fn run_variable(scene: &Scene, vm: &VariableMesh, duration: f32, frames: usize) 
             .map(|&v| (position_of[v as usize], morphs.position(v, now)))
             .collect();
         let new_level = morphs.shown();
-        out.movement.push(if f > 0 && f != frames / 2 {
-            largest_movement(
-                &clip,
-                &shown,
-                &now_shown,
-                |p| stand_in(p, &level),
-                |p| stand_in(p, new_level),
-            )
-        } else {
-            0.0
-        });
+        out.movement.push(largest_movement(
+            (f, frames),
+            &clip,
+            &shown,
+            &now_shown,
+            |p| stand_in(p, &level),
+            |p| stand_in(p, new_level),
+        ));
         shown = now_shown;
         level.clone_from(new_level);
     }

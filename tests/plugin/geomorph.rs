@@ -176,33 +176,47 @@ fn region_meshes(app: &App, model: Entity) -> Vec<Mesh> {
         .collect()
 }
 
-/// The same cut drawn by a model whose material interpolates on the GPU and one written
-/// from the CPU (each in an app of its own: two models would share the budget): every
-/// vertex a triangle uses is drawn at the same place in every frame, and the GPU model's
-/// vertices are written only in the frames a morph starts.
-#[test]
-fn gpu_geomorphs_draw_what_cpu_geomorphs_write_and_write_less() {
-    let asset = cow();
-    let mut apps = [false, true].map(|on_gpu| {
-        let (mut app, handle) = morph_app(&asset);
+/// Two apps of one model of `asset` under geomorphs (view-dependent or not), written from the
+/// CPU and (the second) interpolated on the GPU, each a second at `distance` in front of it,
+/// then cut to `near` (each in an app of its own: two models would share the budget).
+fn cpu_and_gpu_apps(
+    asset: &MultiresMesh,
+    view_dependent: bool,
+    distance: f32,
+    near: Transform,
+) -> [(App, Entity); 2] {
+    [false, true].map(|on_gpu| {
+        let (mut app, handle) = morph_app(asset);
         let mut model =
             app.world_mut()
                 .spawn((MultiresModel(handle), Geomorph(T), Transform::default()));
         if on_gpu {
             model.insert(GpuGeomorph);
         }
+        if view_dependent {
+            model.insert(ViewDependent::default());
+        }
         let model = model.id();
         let camera = app
             .world_mut()
-            .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 40.0)))
+            .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, distance)))
             .id();
         for _ in 0..60 {
             app.update();
         }
-        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
-            Transform::from_xyz(0.4, 0.1, 0.9).looking_at(Vec3::new(0.3, 0.0, 0.0), Vec3::Y);
+        *app.world_mut().get_mut::<Transform>(camera).unwrap() = near;
         (app, model)
-    });
+    })
+}
+
+/// The same cut drawn by a model whose material interpolates on the GPU and one written
+/// from the CPU: every
+/// vertex a triangle uses is drawn at the same place in every frame, and the GPU model's
+/// vertices are written only in the frames a morph starts.
+#[test]
+fn gpu_geomorphs_draw_what_cpu_geomorphs_write_and_write_less() {
+    let near = Transform::from_xyz(0.4, 0.1, 0.9).looking_at(Vec3::new(0.3, 0.0, 0.0), Vec3::Y);
+    let mut apps = cpu_and_gpu_apps(&cow(), false, 40.0, near);
     let [(cpu_app, cpu), (gpu_app, gpu)] = &mut apps;
     let (mut cpu_writes, mut gpu_writes) = (0, 0);
     let (mut last_cpu, mut last_gpu) = (region_meshes(cpu_app, *cpu), region_meshes(gpu_app, *gpu));
@@ -339,29 +353,8 @@ fn view_dependent_geomorphs_stay_in_the_budget_and_come_to_rest() {
         .vertices()
         .positions
         .clone();
-    let mut apps = [false, true].map(|on_gpu| {
-        let (mut app, handle) = morph_app(&asset);
-        let mut model = app.world_mut().spawn((
-            MultiresModel(handle),
-            ViewDependent::default(),
-            Geomorph(T),
-            Transform::default(),
-        ));
-        if on_gpu {
-            model.insert(GpuGeomorph);
-        }
-        let model = model.id();
-        let camera = app
-            .world_mut()
-            .spawn((Camera3d::default(), Transform::from_xyz(0.0, 0.0, 60.0)))
-            .id();
-        for _ in 0..60 {
-            app.update();
-        }
-        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
-            Transform::from_xyz(4.0, 1.0, 4.0).looking_at(Vec3::new(3.0, 0.0, 0.0), Vec3::Y);
-        (app, model)
-    });
+    let near = Transform::from_xyz(4.0, 1.0, 4.0).looking_at(Vec3::new(3.0, 0.0, 0.0), Vec3::Y);
+    let mut apps = cpu_and_gpu_apps(&asset, true, 60.0, near);
     let [(cpu_app, cpu), (gpu_app, gpu)] = &mut apps;
     let mut moving = 0;
     for frame in 0..60 {
