@@ -454,9 +454,17 @@ fn random_target(vm: &VariableMesh, mesh: &IndexedMesh, target: &mut VariableCac
 
 #[test]
 fn variable_levels_morph_crack_free_without_jumps_and_land_on_the_target() {
-    for (name, mesh) in [
-        ("sphere", sphere(16, 24, &[0.0, 0.04, -0.02, 0.01], true)),
-        ("cow", testdata_mesh("cow.obj")),
+    for (name, mesh, closed) in [
+        (
+            "sphere",
+            sphere(16, 24, &[0.0, 0.04, -0.02, 0.01], true),
+            true,
+        ),
+        ("cow", testdata_mesh("cow.obj"), true),
+        ("terrain", grid(24, 24, &[0.0, 0.1, -0.05, 0.2, 0.0]), false),
+        // Open, with collapses whose removed vertex goes with all its triangles, rewritten
+        // nowhere: it still morphs onto the kept vertex first.
+        ("bunny", testdata_mesh("stanford-bunny.obj"), false),
     ] {
         let vm = variable(&mesh);
         let vertices = &vm.mesh().vertices().positions;
@@ -492,7 +500,9 @@ fn variable_levels_morph_crack_free_without_jumps_and_land_on_the_target() {
                 let landing = triangles_shown(|v| m.position(v, t), m.shown().indices());
                 m.follow(&vm, &target, 0, t).unwrap();
                 let indices = m.shown().indices();
-                assert_closed(vertices, indices, &at);
+                if closed {
+                    assert_closed(vertices, indices, &at);
+                }
                 let landed = triangles_shown(|v| m.position(v, t), indices);
                 assert_eq!(
                     landed, landing,

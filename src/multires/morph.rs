@@ -134,6 +134,32 @@ impl MorphTables {
         }
     }
 
+    /// Adds the moves of sequence `seq` that its records do not show (`moves`: step, the
+    /// vertex it removes and the vertex it keeps): a vertex whose triangles all go with the
+    /// collapse (an ear's tip on an open outline) is rewritten nowhere, but still has a place
+    /// to vanish onto.
+    pub(crate) fn add_unrecorded_moves(
+        &mut self,
+        seq: usize,
+        moves: impl Iterator<Item = (usize, u32, u32)>,
+    ) {
+        for (step, u, w) in moves {
+            let (p, q) = (self.position_of[u as usize], self.position_of[w as usize]);
+            if p == q || self.parent[p as usize].0 != u32::MAX {
+                continue;
+            }
+            self.parent[p as usize] = (step as u32, q);
+            if let Some(at) = self.removed_at.get_mut(seq).and_then(|s| s.get_mut(step)) {
+                at.push(p);
+            }
+            for &g in self.copies.get(p as usize) {
+                if self.vertex_parent[g as usize].0 == u32::MAX {
+                    self.vertex_parent[g as usize] = (step as u32, w);
+                }
+            }
+        }
+    }
+
     /// The vertices at position `p`.
     pub(crate) fn copies_of(&self, p: u32) -> &[u32] {
         self.copies.get(p as usize)

@@ -74,12 +74,18 @@ impl VariableGeomorphs {
             .morph_tables
             .get_or_init(|| {
                 let vertices = mesh.mesh.vertices();
-                Arc::new(MorphTables::new(
+                let mut tables = MorphTables::new(
                     vertices.positions.clone(),
                     vertices.normals.clone(),
                     vec![0; vertices.vertex_count()],
                     std::iter::once((&mesh.mesh, None)),
-                ))
+                );
+                // The view data names every collapse's two vertices, also where the records
+                // rewrite no corner.
+                let moves = (0..mesh.collapse_count())
+                    .filter_map(|step| mesh.collapse(step).map(|[u, w]| (step, u, w)));
+                tables.add_unrecorded_moves(0, moves);
+                Arc::new(tables)
             })
             .clone();
         Self {
