@@ -204,24 +204,25 @@ impl VariableGeomorphs {
         }
         // Waiting collapses the target no longer performs turn back; those whose vertices
         // arrived land, after what they depend on (a lower step).
-        let mut landed = Vec::new();
-        for (&step, &end) in &self.pending {
+        // (`retain` visits them in step order.)
+        let (motion, shown) = (&mut self.motion, &mut self.shown);
+        self.pending.retain(|&step, &mut end| {
+            let removed = &tables.removed_at[0][step as usize];
             if !goal(step) {
-                for &p in &tables.removed_at[0][step as usize] {
-                    self.motion.retarget(p, Toward::Own, goal, now);
+                for &p in removed {
+                    motion.retarget(p, Toward::Own, goal, now);
                 }
-                landed.push(step);
-            } else if now >= end && self.shown.is_candidate(mesh, step as usize) {
-                self.shown.perform(mesh, step as usize);
-                for &p in &tables.removed_at[0][step as usize] {
-                    self.motion.end(p);
+                false
+            } else if now >= end && shown.is_candidate(mesh, step as usize) {
+                shown.perform(mesh, step as usize);
+                for &p in removed {
+                    motion.end(p);
                 }
-                landed.push(step);
+                false
+            } else {
+                true
             }
-        }
-        for step in landed {
-            self.pending.remove(&step);
-        }
+        });
         self.motion.end_due(now);
         self.undo.reverse();
         Ok(wanted)
