@@ -22,6 +22,7 @@ macro_rules! with_setters {
 
 #[cfg(feature = "bevy")]
 pub mod bevy_mesh;
+pub mod bounds;
 pub mod budget;
 #[cfg(feature = "distance")]
 pub mod distance;
@@ -36,6 +37,7 @@ pub mod plugin;
 pub mod refine;
 pub mod regions;
 pub mod skin;
+pub(crate) mod util;
 
 /// The types most users need: `use bevy_aslod::prelude::*;`.
 pub mod prelude {

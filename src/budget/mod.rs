@@ -3,8 +3,8 @@
 //!
 //! Each frame, for every region `i`:
 //!
-//! 1. its bind-pose [`Obb`] (fitted once, offline, by [`fit_obb`]) is moved into the world by
-//!    [`Obb::transformed`];
+//! 1. its bind-pose [`Obb`] (fitted once, offline, by [`fit_obb`]; both from
+//!    [`bounds`](crate::bounds)) is moved into the world by [`Obb::transformed`];
 //! 2. [`ProjectedAreaCamera::projected_area`] gives its screen area `Aᵢ` in pixels²
 //!    (Schmalstieg & Tobler's table method, clipped to the near plane and the viewport);
 //!    [`ProjectedAreaCamera::projected_areas`] does many boxes, the common case four at a
@@ -81,14 +81,14 @@
 
 mod allocate;
 mod error;
-mod hull;
-mod obb;
 mod projected_area;
 
+/// The boxes the budget projects, re-exported from [`bounds`](crate::bounds), where they live
+/// (they were defined here before): `budget::Obb` and `budget::fit_obb` stay valid paths.
+pub use crate::bounds::{Obb, fit_aabb, fit_obb, fit_obb_pca};
 pub use allocate::{
     AllocationParams, AllocationReport, Allocator, DEFAULT_ALPHA, DEFAULT_BUDGET, Executor,
     RegionInput, Sequential, allocate,
 };
 pub use error::BudgetError;
-pub use obb::{Obb, fit_aabb, fit_obb, fit_obb_pca};
 pub use projected_area::{ProjectedAreaCamera, silhouette};

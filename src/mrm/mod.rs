@@ -113,12 +113,13 @@
 //! ones its build found (edited ones stay in range but may crack).
 
 mod asset;
+mod bake;
 mod container;
-
-pub use asset::bake_gltf;
 mod progressive;
 
-use crate::budget::Obb;
+pub use bake::bake_gltf;
+
+use crate::bounds::Obb;
 use crate::mesh::MeshError;
 use crate::multires::{BuildOptions, ProgressiveMesh};
 use crate::regions::{RegionError, RegionMesh};

@@ -7,7 +7,7 @@
 //! a prefix of a region's sequence, or any set closed under a variable mesh's dependencies.
 
 use super::ProgressiveMesh;
-use crate::skin::{Buckets, buckets};
+use crate::util::{Buckets, buckets};
 use glam::Vec3;
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};

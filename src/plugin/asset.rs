@@ -1,62 +1,18 @@
 //! The [`MultiresMesh`] asset: a partitioned multiresolution mesh shared by its instances.
 
+use super::error::MultiresError;
+use super::skin::binding::SkinBinding;
 use crate::bevy_mesh::from_bevy_mesh;
-use crate::budget::{Obb, fit_aabb};
-use crate::mesh::{IndexedMesh, MeshError};
-use crate::mrm::{BakeError, BakedMesh};
+use crate::bounds::{Obb, fit_aabb};
+use crate::mesh::IndexedMesh;
+use crate::mrm::BakedMesh;
 use crate::multires::{BuildOptions, ProgressiveMesh};
 use crate::refine::VariableMesh;
 use crate::regions::{GridPlane, Partition, Region, RegionError, RegionMesh};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
-use glam::Vec3;
+use glam::{Mat4, Vec3};
 use std::sync::Arc;
-use thiserror::Error;
-
-/// What can go wrong when building a [`MultiresMesh`].
-#[derive(Debug, Error)]
-#[non_exhaustive]
-pub enum MultiresError {
-    /// The source mesh could not be read or is invalid.
-    #[error(transparent)]
-    Mesh(#[from] MeshError),
-    /// Partitioning or building the regions failed.
-    #[error(transparent)]
-    Region(#[from] RegionError),
-    /// The skin's influences are invalid.
-    #[error(transparent)]
-    Skin(#[from] crate::skin::SkinError),
-    /// A skinned build was asked of a mesh without joints or weights.
-    #[error("the mesh has no joints or weights (JOINTS_0/WEIGHTS_0): it is not skinned")]
-    NotSkinned,
-    /// Building the asset panicked (a bug in this crate; please report it with the mesh).
-    #[error("building the multiresolution mesh panicked")]
-    BuildPanicked,
-    /// The view-dependent data could not be prepared.
-    #[error(transparent)]
-    Refine(#[from] crate::refine::RefineError),
-    /// An inverse bind matrix has a NaN or infinite entry.
-    #[error("inverse bind matrix {joint} is not finite")]
-    NonFiniteBindpose {
-        /// The joint.
-        joint: usize,
-    },
-    /// Baked data whose parts do not fit together (see [`MultiresMesh::from_baked`]).
-    #[error("baked asset: {0}")]
-    Baked(&'static str),
-}
-
-impl From<BakeError> for MultiresError {
-    fn from(e: BakeError) -> Self {
-        match e {
-            BakeError::Mesh(e) => Self::Mesh(e),
-            BakeError::Region(e) => Self::Region(e),
-            BakeError::Skin(e) => Self::Skin(e),
-            BakeError::NotSkinned => Self::NotSkinned,
-            BakeError::NonFiniteBindpose { joint } => Self::NonFiniteBindpose { joint },
-        }
-    }
-}
 
 /// How to cut a mesh into regions for [`MultiresMesh::from_bevy_mesh`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -99,7 +55,7 @@ pub struct MultiresMesh {
     obbs: Arc<[Obb]>,
     /// The axis-aligned box around every region box.
     bounds: Obb,
-    pub(super) skin: Option<Arc<super::skin::SkinBinding>>,
+    skin: Option<Arc<SkinBinding>>,
     /// The whole mesh as one variable-resolution mesh, for [`ViewDependent`](super::ViewDependent).
     variable: Option<Arc<VariableMesh>>,
 }
@@ -116,7 +72,7 @@ impl MultiresMesh {
     fn from_parts(
         regions: RegionMesh,
         obbs: Arc<[Obb]>,
-        skin: Option<super::skin::SkinBinding>,
+        skin: Option<SkinBinding>,
         variable: Option<VariableMesh>,
     ) -> Self {
         let corners: Vec<Vec3> = obbs.iter().flat_map(Obb::corners).collect();
@@ -161,7 +117,7 @@ impl MultiresMesh {
             return Err(MultiresError::Baked("one box per region is needed"));
         }
         let skin = skin
-            .map(|s| super::skin::SkinBinding::from_baked(&regions, s))
+            .map(|s| SkinBinding::from_baked(&regions, s))
             .transpose()?;
         let variable = variable.map(VariableMesh::new).transpose()?;
         Ok(Self::from_parts(regions, obbs.into(), skin, variable))
@@ -202,6 +158,35 @@ impl MultiresMesh {
     #[must_use]
     pub fn variable(&self) -> Option<&Arc<VariableMesh>> {
         self.variable.as_ref()
+    }
+
+    /// Builds a skinned multiresolution mesh: regions by influence (a vertex whose dominant
+    /// weight is at least `1 − rigid_delta` goes to its bone's rigid region, any other to
+    /// the deformable region of its two largest influences), one progressive sequence per
+    /// region, and the binding the plugin needs to animate it.
+    ///
+    /// `mesh` must carry joints and weights (glTF `JOINTS_0`/`WEIGHTS_0`) in bind space;
+    /// `inverse_bindposes` has one matrix per joint. Weights that do not sum to one are
+    /// normalised, with a warning.
+    ///
+    /// # Errors
+    /// [`MultiresError::NotSkinned`] for a mesh without joints or weights,
+    /// [`MultiresError::Skin`] for bad influences (negative, NaN, all zero, a joint out of
+    /// range, no joints), and the errors of [`from_indexed`](Self::from_indexed).
+    pub fn from_skinned(
+        mesh: &IndexedMesh,
+        inverse_bindposes: &[Mat4],
+        rigid_delta: f32,
+    ) -> Result<Self, MultiresError> {
+        let baked = BakedMesh::build_skinned(mesh, inverse_bindposes, Vec::new(), rigid_delta)?;
+        Self::from_baked(baked)
+    }
+
+    /// The skeleton binding, for a mesh built by [`from_skinned`](Self::from_skinned).
+    #[inline]
+    #[must_use]
+    pub fn skin(&self) -> Option<&Arc<SkinBinding>> {
+        self.skin.as_ref()
     }
 
     /// Builds the regions of `mesh` cut by `partition`, with default [`BuildOptions`].

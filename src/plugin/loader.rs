@@ -1,6 +1,7 @@
 //! The `.mrm` asset loader: baked files become [`MultiresMesh`] assets without building.
 
-use super::{MultiresError, MultiresMesh};
+use super::asset::MultiresMesh;
+use super::error::MultiresError;
 use crate::mrm::{self, MrmError};
 use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, LoadContext};

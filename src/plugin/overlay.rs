@@ -1,8 +1,11 @@
 //! The debug overlay (ASLOD Figure 10): every region's world box, drawn with gizmos, and its
 //! triangle count as a screen-space label.
 
-use super::{AslodOverlay, MultiresInstance};
-use crate::budget::Obb;
+use super::components::AslodOverlay;
+use super::instance::MultiresInstance;
+use super::sets::AslodSystems;
+use super::view_dependent::ViewDependentState;
+use crate::bounds::Obb;
 use bevy::camera::Camera;
 use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
@@ -16,7 +19,7 @@ pub(super) fn add_if_gizmos(app: &mut App) {
         app.add_systems(
             PostUpdate,
             (draw_overlay, place_labels)
-                .after(super::AslodSystems::Upload)
+                .after(AslodSystems::Upload)
                 .run_if(|overlay: Res<AslodOverlay>| overlay.0),
         )
         .add_systems(
@@ -30,7 +33,7 @@ pub(super) fn add_if_gizmos(app: &mut App) {
 #[derive(Component, Debug, Default)]
 pub struct OverlayLabel;
 
-/// The 12 edges of a box, as corner pairs in [`Obb::corner`](crate::budget::Obb::corner)'s
+/// The 12 edges of a box, as corner pairs in [`Obb::corner`](crate::bounds::Obb::corner)'s
 /// numbering: corners that differ in one bit.
 const EDGES: [(usize, usize); 12] = [
     (0, 1),
@@ -47,17 +50,23 @@ const EDGES: [(usize, usize); 12] = [
     (3, 7),
 ];
 
+/// What the overlay reads of a model.
+type ModelItem<'a> = (
+    &'a MultiresInstance,
+    &'a GlobalTransform,
+    Option<&'a ViewDependentState>,
+);
+
 /// Every region's world box and how far its level is between coarsest (0) and full (1); for
 /// a view-dependent model, its bounds and its variable-resolution level.
 fn region_boxes<'a>(
-    instance: &'a MultiresInstance,
-    transform: &'a GlobalTransform,
+    (instance, transform, view): ModelItem<'a>,
 ) -> impl Iterator<Item = (Obb, f32, usize)> + 'a {
     let affine = transform.affine();
     let skinned = instance.skinned_world_boxes();
-    let fine = instance.fine.as_ref().map(|fine| {
-        let pm = fine.mesh.mesh();
-        let (lo, hi, count) = (pm.min_triangles(), pm.max_triangles(), fine.shown_count());
+    let level = view.map(|view| {
+        let pm = view.mesh().mesh();
+        let (lo, hi, count) = (pm.min_triangles(), pm.max_triangles(), view.shown_count());
         let t = if hi > lo {
             count.saturating_sub(lo) as f32 / (hi - lo) as f32
         } else {
@@ -65,7 +74,7 @@ fn region_boxes<'a>(
         };
         (instance.bounds.transformed(&affine), t, count)
     });
-    let regions = if fine.is_some() {
+    let regions = if level.is_some() {
         &[][..]
     } else {
         instance.regions.regions()
@@ -88,13 +97,13 @@ fn region_boxes<'a>(
             };
             (obb, t, count)
         })
-        .chain(fine)
+        .chain(level)
 }
 
 /// Draws each region's world box, blue at its coarsest level to red at full detail.
-fn draw_overlay(models: Query<(&MultiresInstance, &GlobalTransform)>, mut gizmos: Gizmos) {
-    for (instance, transform) in &models {
-        for (obb, t, _) in region_boxes(instance, transform) {
+fn draw_overlay(models: Query<ModelItem<'static>>, mut gizmos: Gizmos) {
+    for model in &models {
+        for (obb, t, _) in region_boxes(model) {
             let corners = obb.corners();
             let color = Color::srgb(t, 0.2, 1.0 - t);
             for (a, b) in EDGES {
@@ -109,7 +118,7 @@ fn draw_overlay(models: Query<(&MultiresInstance, &GlobalTransform)>, mut gizmos
 /// viewport get one.
 fn place_labels(
     mut commands: Commands,
-    models: Query<(&MultiresInstance, &GlobalTransform)>,
+    models: Query<ModelItem<'static>>,
     cameras: Query<(&Camera, &GlobalTransform)>,
     mut labels: Query<(&mut Text, &mut Node, &mut Visibility), With<OverlayLabel>>,
     mut wanted: Local<Vec<(f32, Vec2, usize)>>,
@@ -119,8 +128,8 @@ fn place_labels(
         return;
     };
     let viewport = camera.logical_viewport_rect();
-    for (instance, transform) in &models {
-        for (obb, _, count) in region_boxes(instance, transform) {
+    for model in &models {
+        for (obb, _, count) in region_boxes(model) {
             // `world_to_viewport` only rejects points behind the camera or past its far plane.
             let Ok(pixel) = camera.world_to_viewport(eye, obb.center) else {
                 continue;

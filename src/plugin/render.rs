@@ -26,7 +26,10 @@
 //! prepasses and several cameras see the change in the frame that asked for it; nothing is
 //! throttled by `RenderAssetBytesPerFrame`.
 
+use super::components::{LodRegion, ViewDependentLevel};
+use super::instance::empty_indices;
 use bevy::asset::AssetId;
+use bevy::camera::primitives::Aabb;
 use bevy::mesh::{Indices, Mesh};
 use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
@@ -226,6 +229,107 @@ impl RenderWrites {
         }
         self.batch.arena.len() - before
     }
+}
+
+/// The entities `Upload` writes meshes of: regions and variable-resolution levels.
+pub(crate) type RegionLike = Or<(With<LodRegion>, With<ViewDependentLevel>)>;
+
+/// Where `Upload` writes: the meshes, how, the renderer's queue and the region boxes it marks
+/// changed (so Bevy rebuilds those instances' draw data from the new index slices).
+pub(crate) struct UploadTarget<'a, 'w, 's> {
+    pub(crate) meshes: &'a mut Assets<Mesh>,
+    pub(crate) direct: bool,
+    pub(crate) writes: &'a mut RenderWrites,
+    pub(crate) aabbs: &'a mut Query<'w, 's, &'static mut Aabb, RegionLike>,
+    /// Bytes handed to the renderer this frame.
+    pub(crate) bytes: u64,
+}
+
+impl UploadTarget<'_, '_, '_> {
+    /// The region mesh to change: without a change event on the direct path (its bytes go to
+    /// the renderer through [`RenderWrites`]), with one on the whole-mesh path.
+    pub(crate) fn mesh(&mut self, id: AssetId<Mesh>) -> Option<&mut Mesh> {
+        if self.direct {
+            self.meshes.get_mut_untracked(id)
+        } else {
+            self.meshes
+                .get_mut(id)
+                .map(bevy::asset::AssetMut::into_inner)
+        }
+    }
+
+    /// After a region mesh's index buffer changed: queue it and mark the region's box changed
+    /// (direct), or count what Bevy re-uploads (whole mesh).
+    pub(crate) fn indices_changed(&mut self, id: AssetId<Mesh>, entity: Entity) {
+        let Some(mesh) = self.meshes.get(id) else {
+            return;
+        };
+        if !self.direct {
+            self.bytes += whole_mesh_bytes(mesh);
+            return;
+        }
+        if let Ok(mut aabb) = self.aabbs.get_mut(entity) {
+            aabb.set_changed();
+        }
+        if self.writes.enabled
+            && let Some(indices) = mesh.indices()
+        {
+            self.bytes += self.writes.indices(id, indices) as u64;
+        }
+    }
+
+    /// After a skinned region's vertices `written` were blended into its mesh: queue the run
+    /// from the lowest to the highest (direct), or count what Bevy re-uploads (whole mesh,
+    /// unless its indices changed too and were counted already).
+    pub(crate) fn vertices_changed(&mut self, id: AssetId<Mesh>, written: &[u32], counted: bool) {
+        let Some(mesh) = self.meshes.get(id) else {
+            return;
+        };
+        if !self.direct {
+            if !counted {
+                self.bytes += whole_mesh_bytes(mesh);
+            }
+            return;
+        }
+        let (Some(&lo), Some(&hi)) = (written.iter().min(), written.iter().max()) else {
+            return;
+        };
+        if self.writes.enabled {
+            self.bytes += self.writes.vertices(id, mesh, lo, hi) as u64;
+        }
+    }
+}
+
+/// Makes `buffer` the mesh's index buffer by swapping (the old one comes back in `buffer`): no
+/// copy, and no allocation in steady state. False, with a warning, when the mesh's data is no
+/// longer in the main world.
+pub(crate) fn swap_indices(mesh: &mut Mesh, buffer: &mut Vec<u32>) -> bool {
+    let mut staged = Indices::U32(std::mem::take(buffer));
+    let swapped = swap_staged(mesh, &mut staged);
+    if let Indices::U32(old) = staged {
+        *buffer = old;
+    }
+    swapped
+}
+
+/// [`swap_indices`] for a staged buffer of either width; `buffer` keeps its width (a buffer of
+/// the other width that comes back from the mesh, its first one, is dropped).
+pub(crate) fn swap_staged(mesh: &mut Mesh, buffer: &mut Indices) -> bool {
+    let narrow = matches!(buffer, Indices::U16(_));
+    match mesh.try_indices_mut_option() {
+        Ok(Some(indices)) => std::mem::swap(indices, buffer),
+        Ok(None) => mesh.insert_indices(std::mem::replace(buffer, empty_indices(narrow))),
+        Err(_) => {
+            warn_once!(
+                "a region mesh's data is no longer in the main world; its LOD is not updated"
+            );
+            return false;
+        }
+    }
+    if matches!(buffer, Indices::U16(_)) != narrow {
+        *buffer = empty_indices(narrow);
+    }
+    true
 }
 
 /// One frame's bytes for the GPU, and where each run goes: written to the GPU at once and

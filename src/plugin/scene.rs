@@ -1,7 +1,10 @@
 //! Turning the meshes of a spawned scene (typically a glTF character) into multiresolution
 //! models, so Bevy's own loader, joints and `AnimationPlayer` drive them.
 
-use super::{CountInBudget, Geomorph, MultiresMesh, MultiresModel, MultiresSkin, PartitionSpec};
+use super::asset::{MultiresMesh, PartitionSpec};
+use super::components::{CountInBudget, Geomorph, MultiresModel};
+use super::error::MultiresError;
+use super::skin::MultiresSkin;
 use crate::bevy_mesh::from_bevy_mesh;
 use crate::skin::DEFAULT_RIGID_DELTA;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
@@ -122,7 +125,7 @@ enum Built {
     /// Loading from a baked file; built from the inputs if that fails or does not fit.
     Loading(Handle<MultiresMesh>, Box<BuildInputs>),
     /// Building on the async compute pool.
-    Pending(Task<Result<MultiresMesh, super::MultiresError>>),
+    Pending(Task<Result<MultiresMesh, MultiresError>>),
     Ok(Handle<MultiresMesh>, usize),
     Failed,
 }
@@ -152,7 +155,7 @@ impl BuildInputs {
                         self.static_partition,
                     )
                 }))
-                .unwrap_or(Err(super::MultiresError::BuildPanicked))
+                .unwrap_or(Err(MultiresError::BuildPanicked))
             }),
         )
     }
@@ -181,7 +184,7 @@ fn build(
     inverse_bindposes: Option<Vec<Mat4>>,
     rigid_delta: f32,
     static_partition: PartitionSpec,
-) -> Result<MultiresMesh, super::MultiresError> {
+) -> Result<MultiresMesh, MultiresError> {
     let indexed = mesh?;
     match inverse_bindposes {
         Some(ib) => MultiresMesh::from_skinned(&indexed, &ib, rigid_delta),

@@ -222,12 +222,12 @@ impl Region {
         self.bounds
     }
 
-    /// The tight box around the region's own vertices ([`fit_obb`](crate::budget::fit_obb);
+    /// The tight box around the region's own vertices ([`fit_obb`](crate::bounds::fit_obb);
     /// an axis-aligned one when that fails, the bounds when no point is usable): the box the
     /// budget projects.
     #[must_use]
-    pub fn obb(&self) -> crate::budget::Obb {
-        use crate::budget::{Obb, fit_aabb, fit_obb};
+    pub fn obb(&self) -> crate::bounds::Obb {
+        use crate::bounds::{Obb, fit_aabb, fit_obb};
         let points = &self.mesh.vertices().positions[..self.own_vertices];
         fit_obb(points)
             .or_else(|| fit_aabb(points))

@@ -72,7 +72,6 @@ pub use decompose::{SkinDecomposition, decompose};
 pub use error::SkinError;
 pub use influences::{Influences, WeightReport};
 pub use weights::shortest_path_weights;
-pub(crate) use weights::{Buckets, buckets};
 
 /// Most influences (joint and weight pairs) per vertex, as in glTF's `JOINTS_0`/`WEIGHTS_0`.
 pub const MAX_INFLUENCES: usize = 4;

@@ -2,6 +2,7 @@
 
 use super::{Influences, SkinError, SkinRegionKind};
 use crate::mesh::{IndexedMesh, weld_positions};
+use crate::util::{Buckets, buckets};
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
@@ -250,38 +251,6 @@ fn two_bones(a: u16, b: u16, s: f32) -> ([u16; 4], [f32; 4]) {
     }
 }
 
-/// Vertex ids grouped by a dense key (compressed rows).
-#[derive(Debug)]
-pub(crate) struct Buckets {
-    start: Vec<u32>,
-    items: Vec<u32>,
-}
-
-impl Buckets {
-    /// The ids with key `k`.
-    pub(crate) fn get(&self, k: usize) -> &[u32] {
-        &self.items[self.start[k] as usize..self.start[k + 1] as usize]
-    }
-}
-
-/// Groups `0..keys.len()` by `keys[i] < count`.
-pub(crate) fn buckets(keys: &[u32], count: usize) -> Buckets {
-    let mut start = vec![0u32; count + 1];
-    for &k in keys {
-        start[k as usize + 1] += 1;
-    }
-    for k in 0..count {
-        start[k + 1] += start[k];
-    }
-    let mut fill = start.clone();
-    let mut items = vec![0; keys.len()];
-    for (i, &k) in keys.iter().enumerate() {
-        items[fill[k as usize] as usize] = i as u32;
-        fill[k as usize] += 1;
-    }
-    Buckets { start, items }
-}
-
 /// Edges between welded vertices: node ids are the representative vertex of each position.
 struct Graph {
     remap: Vec<u32>,
@@ -309,7 +278,7 @@ impl Graph {
         let keys: Vec<u32> = edges.iter().map(|e| e.0).collect();
         let mut adjacency = buckets(&keys, n);
         // `buckets` keeps the input order, so row `a` lists the `b` of the edges `(a, b)`.
-        for (item, e) in adjacency.items.iter_mut().zip(&edges) {
+        for (item, e) in adjacency.items_mut().iter_mut().zip(&edges) {
             *item = e.1;
         }
         let copies = buckets(&remap, n);

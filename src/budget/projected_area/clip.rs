@@ -1,7 +1,7 @@
 //! Clipping, in `f64`: the part of a box in front of the near plane, and polygons against the
 //! viewport.
 
-use crate::budget::hull::{PointStack, monotone_chain};
+use crate::bounds::{PointStack, monotone_chain};
 use glam::{DVec2, DVec4, Vec4Swizzles};
 
 /// Corner `i` of a box with centre `c` and half axes `a` (in whatever space, or any linear

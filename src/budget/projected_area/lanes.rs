@@ -2,7 +2,7 @@
 //! [`ProjectedAreaCamera::projected_areas`](super::ProjectedAreaCamera::projected_areas).
 
 use super::silhouette::face_loop;
-use crate::budget::Obb;
+use crate::bounds::Obb;
 use glam::{BVec4A, Mat4, Vec3, Vec4};
 
 /// A camera's constants, each splat across the four lanes of a [`Vec4`], for measuring four

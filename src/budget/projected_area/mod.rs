@@ -11,7 +11,8 @@ mod silhouette;
 
 pub use silhouette::silhouette;
 
-use super::{BudgetError, Obb};
+use super::BudgetError;
+use crate::bounds::Obb;
 use glam::{Affine3A, DMat4, DVec3, DVec4, Mat4, Vec2, Vec3, Vec4, Vec4Swizzles};
 use lanes::Lanes;
 

@@ -117,7 +117,7 @@ static SILHOUETTE: [[u8; 7]; 64] = build_silhouette_table();
 
 /// The box corners on the outline seen from an eye with face code `code` (only the low six bits
 /// count), in counter-clockwise order as seen from the eye, starting at the lowest corner.
-/// Corners are numbered as in [`Obb::corner`](crate::budget::Obb::corner).
+/// Corners are numbered as in [`Obb::corner`](crate::bounds::Obb::corner).
 ///
 /// Bit `2k` of the code is set when the eye is below the box on axis `k` (`x < min`), bit
 /// `2k + 1` when it is above (`x > max`). Of the 64 codes, 26 can occur with the eye outside

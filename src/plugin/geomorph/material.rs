@@ -1,5 +1,7 @@
-//! Geomorphs interpolated on the GPU: a material extension whose vertex shaders move each
-//! vertex from where its morph started to where it rests, by the render world's clock.
+//! Geomorphs interpolated on the GPU: a material extension whose vertex shaders
+//! (`geomorph.wgsl`, `geomorph_prepass.wgsl`, with `geomorph_common.wgsl` beside this file)
+//! move each vertex from where its morph started to where it rests, by the render world's
+//! clock.
 //!
 //! A region mesh of a [`GpuGeomorph`] model carries two more vertex attributes,
 //! [`ATTRIBUTE_MORPH_FROM`] (the position a morph starts from, and its start time) and
@@ -7,7 +9,9 @@
 //! and normal are the morph's ends. The plugin writes a vertex's four values once, when a
 //! morph starts on it, not each frame it moves.
 
-use super::MultiresModel;
+use crate::plugin::components::MultiresModel;
+use crate::plugin::materials::MultiresMaterialPlugin;
+use crate::plugin::sets::AslodSystems;
 use bevy::asset::embedded_asset;
 use bevy::mesh::{MeshVertexAttribute, MeshVertexBufferLayoutRef};
 use bevy::pbr::{
@@ -41,7 +45,7 @@ pub const ATTRIBUTE_MORPH_NORMAL_FROM: MeshVertexAttribute = MeshVertexAttribute
 pub struct GeomorphExtension {}
 
 /// `StandardMaterial` with geomorphs on the GPU: give it to a [`MultiresModel`] with a
-/// [`Geomorph`](super::Geomorph) (the `base` is the `StandardMaterial` it would have had).
+/// [`Geomorph`](crate::plugin::Geomorph) (the `base` is the `StandardMaterial` it would have had).
 ///
 /// ```
 /// use bevy::prelude::*;
@@ -69,8 +73,8 @@ pub struct GeomorphExtension {}
 /// ```
 pub type GeomorphMaterial = ExtendedMaterial<StandardMaterial, GeomorphExtension>;
 
-const SHADER: &str = "embedded://bevy_aslod/plugin/geomorph.wgsl";
-const PREPASS_SHADER: &str = "embedded://bevy_aslod/plugin/geomorph_prepass.wgsl";
+const SHADER: &str = "embedded://bevy_aslod/plugin/geomorph/geomorph.wgsl";
+const PREPASS_SHADER: &str = "embedded://bevy_aslod/plugin/geomorph/geomorph_prepass.wgsl";
 
 impl MaterialExtension for GeomorphExtension {
     fn vertex_shader() -> ShaderRef {
@@ -112,7 +116,7 @@ impl MaterialExtension for GeomorphExtension {
 /// meshes get the morph attributes, and a morph costs one write of its vertices when it
 /// starts. [`GeomorphMaterialPlugin`] keeps it on every model with its material; insert it
 /// yourself for a material of your own whose vertex shader reads the attributes as
-/// `geomorph.wgsl` does. Without it a [`Geomorph`](super::Geomorph) model's moving
+/// `geomorph.wgsl` does. Without it a [`Geomorph`](crate::plugin::Geomorph) model's moving
 /// vertices are written from the CPU each frame.
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[reflect(Component)]
@@ -120,8 +124,8 @@ pub struct GpuGeomorph;
 
 /// Draws [`MultiresModel`]s with `ExtendedMaterial<B, GeomorphExtension>`: adds Bevy's
 /// `MaterialPlugin` for it (unless added already), a
-/// [`MultiresMaterialPlugin`](super::MultiresMaterialPlugin), and keeps [`GpuGeomorph`] on
-/// the models that have the material. [`AslodPlugin`](super::AslodPlugin) adds it for
+/// [`MultiresMaterialPlugin`](crate::plugin::MultiresMaterialPlugin), and keeps [`GpuGeomorph`] on
+/// the models that have the material. [`AslodPlugin`](crate::plugin::AslodPlugin) adds it for
 /// `StandardMaterial` when the app renders with Bevy's `PbrPlugin`.
 pub struct GeomorphMaterialPlugin<B: Material>(std::marker::PhantomData<fn() -> B>);
 
@@ -141,17 +145,15 @@ where
         if !app.is_plugin_added::<MaterialPlugin<M<B>>>() {
             app.add_plugins(MaterialPlugin::<M<B>>::default());
         }
-        if !app.is_plugin_added::<super::MultiresMaterialPlugin<M<B>>>() {
-            app.add_plugins(super::MultiresMaterialPlugin::<M<B>>::default());
+        if !app.is_plugin_added::<MultiresMaterialPlugin<M<B>>>() {
+            app.add_plugins(MultiresMaterialPlugin::<M<B>>::default());
         }
         if !app.world().contains_resource::<ShadersEmbedded>() {
             app.init_resource::<ShadersEmbedded>();
             embed_shaders(app);
         }
-        app.register_type::<GpuGeomorph>().add_systems(
-            PostUpdate,
-            mark_gpu_models::<B>.in_set(super::AslodSystems::Spawn),
-        );
+        app.register_type::<GpuGeomorph>()
+            .add_systems(PostUpdate, mark_gpu_models::<B>.in_set(AslodSystems::Spawn));
     }
 }
 

@@ -395,11 +395,11 @@ pub(super) fn convex_hull_2d(points: &mut [DVec2], hull: &mut Vec<DVec2>) {
 }
 
 /// Where [`monotone_chain`] builds a hull. The OBB fit keeps its hulls in a `Vec` (offline, of
-/// any size); the near-plane clip of [`ProjectedAreaCamera`](super::ProjectedAreaCamera) runs
+/// any size); the near-plane clip of [`ProjectedAreaCamera`](crate::budget::ProjectedAreaCamera) runs
 /// for every box that straddles the plane, every frame, and keeps its few points in a fixed
 /// array on the stack. So the one hull is generic over where its points go, and neither
 /// allocates per call.
-pub(super) trait PointStack {
+pub(crate) trait PointStack {
     /// Removes every point.
     fn clear(&mut self);
     /// Puts `p` on top.
@@ -434,7 +434,7 @@ impl PointStack for Vec<DVec2> {
 
 /// The convex hull of `points`, which are sorted by x then y, counter-clockwise, without
 /// collinear vertices, into `hull`: Andrew's monotone chain.
-pub(super) fn monotone_chain<H: PointStack>(points: &[DVec2], hull: &mut H) {
+pub(crate) fn monotone_chain<H: PointStack>(points: &[DVec2], hull: &mut H) {
     hull.clear();
     if points.len() < 3 {
         for &p in points {

@@ -7,7 +7,7 @@ use glam::{Affine3A, DMat3, DVec2, DVec3, Mat3, Vec3};
 ///
 /// Corner `i` (see [`corners`](Self::corners)) is `center + Σₖ ±half_extents[k] · axes.col(k)`,
 /// with the `+` sign where bit `k` of `i` is set. The projected-area table
-/// ([`silhouette`](super::silhouette)) uses the same numbering.
+/// ([`silhouette`](crate::budget::silhouette)) uses the same numbering.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Obb {
     /// The box's center.
@@ -155,7 +155,7 @@ impl Obb {
 /// See also [`fit_obb_pca`] (faster, looser) and [`fit_aabb`].
 ///
 /// ```
-/// use bevy_aslod::budget::fit_obb;
+/// use bevy_aslod::bounds::fit_obb;
 /// use glam::{Quat, Vec3};
 ///
 /// // The corners of a rotated 4 × 2 × 1 box come back as that box.

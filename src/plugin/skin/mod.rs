@@ -1,5 +1,7 @@
-//! Skinned multiresolution models (ASLOD section 5): the binding stored in the asset, the
-//! per-instance deformation state, and the `Deform` step.
+//! Skinned multiresolution models (ASLOD section 5): the binding stored in the asset
+//! ([`binding`]), the per-instance deformation state ([`SkinState`]), the joints read at the
+//! start of `Allocate` ([`update_skins`]), the `Deform` step ([`deform`]) and what `Upload`
+//! writes of it.
 //!
 //! Spaces: `G_j` is joint `j`'s `GlobalTransform`, `IB_j` its inverse bind matrix and `G_R`
 //! the model root's `GlobalTransform`. Bevy's own skinning puts a vertex at
@@ -15,192 +17,26 @@
 //! - under geomorphs, a moving vertex is skinned from where its morph shows it in bind space
 //!   (`Geomorphs::position`), and a moving rigid region writes its own vertices too.
 
+pub(crate) mod binding;
+
+use super::components::AslodStats;
+use super::diagnostics;
+use super::geomorph::RegionGeomorphs;
+use super::instance::MultiresInstance;
+use super::render::{UploadTarget, swap_indices};
 use super::tasks::par_chunks;
-use super::{MultiresError, MultiresMesh};
-use crate::budget::Obb;
+use crate::bounds::Obb;
 use crate::mesh::IndexedMesh;
-use crate::mrm::{BakedMesh, BakedSkin};
 use crate::regions::{Geomorphs, RegionCaches, RegionMesh};
 use crate::skin::{Influences, SkinRegionKind, blend};
+use bevy::diagnostic::Diagnostics;
+use bevy::ecs::system::NonSendMarker;
+use bevy::mesh::VertexAttributeValues;
+use bevy::platform::time::Instant;
 use bevy::prelude::*;
+use binding::SkinBinding;
 use glam::{Affine3A, Mat3, Mat4, Vec3};
 use std::sync::Arc;
-
-/// The skeleton binding of a skinned [`MultiresMesh`]: what each region is and how its
-/// vertices are placed. Built by [`MultiresMesh::from_skinned`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct SkinBinding {
-    /// Per region: rigid on one bone, or deformable between two.
-    kinds: Vec<SkinRegionKind>,
-    /// Per region, per local vertex: the influences that place it. A vertex of a rigid
-    /// region has its bone alone, with weight 1.
-    local: Vec<Influences>,
-    /// Per region: the joints its local vertices depend on, sorted, without repeats.
-    region_joints: Vec<Vec<u16>>,
-    /// One inverse bind matrix per joint.
-    inverse_bindposes: Vec<Mat4>,
-    /// Vertices with more than two influences (they blend with all of them).
-    more_than_two: usize,
-    /// Vertices whose weights were renormalised or whose unused slots were cleared.
-    normalised: usize,
-    /// The joints' names in joint order, from a baked file (empty when built here).
-    joint_names: Vec<String>,
-}
-
-impl SkinBinding {
-    /// The binding of baked regions: how each local vertex is placed (by its rigid
-    /// region's bone, or by all its influences, normalised again from the source's), and
-    /// the joints each region depends on.
-    pub(super) fn from_baked(regions: &RegionMesh, skin: BakedSkin) -> Result<Self, MultiresError> {
-        let BakedSkin {
-            kinds,
-            inverse_bindposes,
-            more_than_two,
-            normalised,
-            joint_names,
-        } = skin;
-        if kinds.len() != regions.regions().len() {
-            return Err(MultiresError::Baked("one skin kind per region is needed"));
-        }
-        let source = regions.source_vertices();
-        let (Some(joints), Some(weights)) = (&source.joints, &source.weights) else {
-            return Err(MultiresError::NotSkinned);
-        };
-        let (influences, _) = Influences::new(joints, weights, inverse_bindposes.len())?;
-        let region_of = regions.partition().region_of();
-        let placed = |g: usize| -> ([u16; 4], [f32; 4]) {
-            match kinds[region_of[g] as usize] {
-                SkinRegionKind::Rigid { bone } => ([bone, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
-                SkinRegionKind::Deformable { .. } => (influences.joints[g], influences.weights[g]),
-            }
-        };
-        let mut local = Vec::with_capacity(kinds.len());
-        let mut region_joints = Vec::with_capacity(kinds.len());
-        for region in regions.regions() {
-            let (joints, weights): (Vec<_>, Vec<_>) = region
-                .global_vertices()
-                .iter()
-                .map(|&g| placed(g as usize))
-                .unzip();
-            let mut used: Vec<u16> = joints
-                .iter()
-                .zip(&weights)
-                .flat_map(|(j, w)| j.iter().zip(w).filter(|(_, w)| **w > 0.0).map(|(j, _)| *j))
-                .collect();
-            used.sort_unstable();
-            used.dedup();
-            region_joints.push(used);
-            local.push(Influences { joints, weights });
-        }
-        Ok(Self {
-            kinds,
-            local,
-            region_joints,
-            inverse_bindposes,
-            more_than_two,
-            normalised,
-            joint_names,
-        })
-    }
-
-    /// The joints' names in joint order, as the file it was baked into gave them (an
-    /// unnamed joint is `""`); empty for a binding built from a mesh.
-    #[inline]
-    #[must_use]
-    pub fn joint_names(&self) -> &[String] {
-        &self.joint_names
-    }
-
-    /// Per region: rigid or deformable, and its bones.
-    #[inline]
-    #[must_use]
-    pub fn kinds(&self) -> &[SkinRegionKind] {
-        &self.kinds
-    }
-
-    /// Number of joints the skin refers to.
-    #[inline]
-    #[must_use]
-    pub fn joint_count(&self) -> usize {
-        self.inverse_bindposes.len()
-    }
-
-    /// The inverse bind matrices, one per joint.
-    #[inline]
-    #[must_use]
-    pub fn inverse_bindposes(&self) -> &[Mat4] {
-        &self.inverse_bindposes
-    }
-
-    /// Vertices that had more than two influences: they join the region of their two
-    /// largest and blend with all of them.
-    #[inline]
-    #[must_use]
-    pub fn more_than_two(&self) -> usize {
-        self.more_than_two
-    }
-
-    /// Vertices whose weights were normalised on import (they did not sum to one, or named
-    /// a joint out of range with a zero weight).
-    #[inline]
-    #[must_use]
-    pub fn normalised(&self) -> usize {
-        self.normalised
-    }
-
-    /// The influences that place region `region`'s local vertices (rigid ones by their bone
-    /// alone).
-    ///
-    /// # Panics
-    /// When `region` is out of range.
-    #[inline]
-    #[must_use]
-    pub fn local_influences(&self, region: usize) -> &Influences {
-        &self.local[region]
-    }
-
-    /// Rigid regions: how many, and deformable regions: how many.
-    #[must_use]
-    pub fn rigid_deformable_counts(&self) -> (usize, usize) {
-        let rigid = self
-            .kinds
-            .iter()
-            .filter(|k| matches!(k, SkinRegionKind::Rigid { .. }))
-            .count();
-        (rigid, self.kinds.len() - rigid)
-    }
-}
-
-impl MultiresMesh {
-    /// Builds a skinned multiresolution mesh: regions by influence (a vertex whose dominant
-    /// weight is at least `1 − rigid_delta` goes to its bone's rigid region, any other to
-    /// the deformable region of its two largest influences), one progressive sequence per
-    /// region, and the binding the plugin needs to animate it.
-    ///
-    /// `mesh` must carry joints and weights (glTF `JOINTS_0`/`WEIGHTS_0`) in bind space;
-    /// `inverse_bindposes` has one matrix per joint. Weights that do not sum to one are
-    /// normalised, with a warning.
-    ///
-    /// # Errors
-    /// [`MultiresError::NotSkinned`] for a mesh without joints or weights,
-    /// [`MultiresError::Skin`] for bad influences (negative, NaN, all zero, a joint out of
-    /// range, no joints), and the errors of [`from_indexed`](Self::from_indexed).
-    pub fn from_skinned(
-        mesh: &IndexedMesh,
-        inverse_bindposes: &[Mat4],
-        rigid_delta: f32,
-    ) -> Result<Self, MultiresError> {
-        let baked = BakedMesh::build_skinned(mesh, inverse_bindposes, Vec::new(), rigid_delta)?;
-        Self::from_baked(baked)
-    }
-
-    /// The skeleton binding, for a mesh built by [`from_skinned`](Self::from_skinned).
-    #[inline]
-    #[must_use]
-    pub fn skin(&self) -> Option<&Arc<SkinBinding>> {
-        self.skin.as_ref()
-    }
-}
 
 /// The joints of a skinned [`MultiresModel`](super::MultiresModel), in the skin's joint
 /// order (as in Bevy's `SkinnedMesh::joints`). A skinned model without it is drawn in its
@@ -213,25 +49,25 @@ pub struct MultiresSkin {
 
 /// Per-region deformation state of one instance.
 #[derive(Debug, Default)]
-pub(crate) struct RegionSkin {
+struct RegionSkin {
     /// The region's current index buffer (local vertices).
-    pub(crate) indices: Vec<u32>,
+    indices: Vec<u32>,
     /// Local vertices `indices` refers to, each once.
-    pub(crate) referenced: Vec<u32>,
+    referenced: Vec<u32>,
     /// Local vertices written this frame (a subset of `referenced`).
-    pub(crate) written: Vec<u32>,
+    written: Vec<u32>,
     /// Deformed positions and normals in the region entity's space, as the mesh attributes
     /// they become: `Upload` swaps them with the mesh's (double buffering). Every referenced
     /// vertex is written each time the region is blended, and a rigid region's own vertices
     /// never change, so whichever buffer is in the mesh is current where it is drawn.
-    pub(crate) positions: Vec<[f32; 3]>,
-    pub(crate) normals: Vec<[f32; 3]>,
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
     /// Whether the source has normals (otherwise `normals` is not blended nor uploaded).
-    pub(crate) has_normals: bool,
+    has_normals: bool,
     /// `stamp[v] == generation` marks `v` as referenced.
     stamp: Vec<u32>,
     generation: u32,
-    pub(crate) indices_changed: bool,
+    indices_changed: bool,
     /// Under geomorphs: the `Deform`s left that write the region from its morphs: while
     /// it moves, and twice after, at rest, so both of its buffers end current (a rigid
     /// region's `referenced` holds its own vertices only then).
@@ -265,10 +101,11 @@ impl RegionSkin {
     }
 }
 
-/// The deformation state of a skinned instance.
-#[derive(Debug)]
+/// The deformation state of a skinned instance (skinned models only: they stage their index
+/// buffers here instead of in a `RegionStaging`).
+#[derive(Component, Debug)]
 pub(crate) struct SkinState {
-    pub(crate) binding: Arc<SkinBinding>,
+    binding: Arc<SkinBinding>,
     /// `S_j = G_R⁻¹ G_j IB_j`: skinning matrices in the model root's space.
     matrices: Vec<Mat4>,
     /// Per joint: whether `S_j` changed this frame.
@@ -277,9 +114,7 @@ pub(crate) struct SkinState {
     joint_globals: Vec<Affine3A>,
     /// `G_R`.
     root_global: Affine3A,
-    /// Per region: its box in world space this frame.
-    pub(crate) world_obbs: Vec<Obb>,
-    pub(crate) regions: Vec<RegionSkin>,
+    regions: Vec<RegionSkin>,
     first_frame: bool,
 }
 
@@ -309,7 +144,6 @@ impl SkinState {
             moved: vec![true; joints],
             joint_globals: vec![Affine3A::IDENTITY; joints],
             root_global: Affine3A::IDENTITY,
-            world_obbs: Vec::new(),
             regions: region_state,
             first_frame: true,
         }
@@ -352,13 +186,15 @@ impl SkinState {
     }
 
     /// Reads the joints' and the root's global transforms: skinning matrices, which joints
-    /// moved, and every region's world box.
-    pub(crate) fn update_matrices(
+    /// moved, and every region's world box (its box `obbs` placed by its bones, into
+    /// `world`). Returns whether a joint had no `GlobalTransform`.
+    fn update_matrices(
         &mut self,
         root: &GlobalTransform,
         joints: &[Entity],
         globals: &Query<&GlobalTransform>,
         obbs: &[Obb],
+        world: &mut Vec<Obb>,
     ) -> bool {
         self.root_global = root.affine();
         let root_inv = Mat4::from(self.root_global.inverse());
@@ -378,7 +214,7 @@ impl SkinState {
         }
         self.first_frame = false;
         let root = Mat4::from(self.root_global);
-        self.world_obbs.clear();
+        world.clear();
         for (r, kind) in self.binding.kinds.iter().enumerate() {
             let Some(obb) = obbs.get(r) else { continue };
             let at = |bone: u16| {
@@ -390,7 +226,7 @@ impl SkinState {
                         .unwrap_or_default();
                 obb.transformed(&Affine3A::from_mat4(m))
             };
-            self.world_obbs.push(match *kind {
+            world.push(match *kind {
                 SkinRegionKind::Rigid { bone } => at(bone),
                 SkinRegionKind::Deformable { bones: [a, b] } => enclose(&at(a), &at(b)),
             });
@@ -526,19 +362,18 @@ impl Job<'_> {
 
 /// One skinned instance for [`deform`]: its caches, regions, deformation state, and its
 /// geomorphs with the frame's time.
-pub(crate) type DeformInput<'a> = (
+type DeformInput<'a> = (
     &'a mut RegionCaches,
     &'a RegionMesh,
     &'a mut SkinState,
     Option<(&'a Geomorphs, f32)>,
 );
 
-/// `Deform` for every skinned instance: refresh the index buffers of regions whose cache
-/// changed (in parallel over instances), then blend, in parallel over regions, the vertices
-/// of each region whose joints moved or whose buffer changed; both on the compute task pool
-/// and the calling thread.
-/// Returns the vertices blended.
-pub(crate) fn deform(instances: &mut [DeformInput<'_>]) -> usize {
+/// For every skinned instance: refresh the index buffers of regions whose cache changed (in
+/// parallel over instances), then blend, in parallel over regions, the vertices of each
+/// region whose joints moved or whose buffer changed; both on the compute task pool and the
+/// calling thread. Returns the vertices blended.
+fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
     par_chunks(instances, |chunk| {
         for (caches, regions, skin, morph) in chunk {
             skin.refresh_indices(caches, regions, morph.map(|(m, _)| m));
@@ -589,4 +424,124 @@ pub(crate) fn deform(instances: &mut [DeformInput<'_>]) -> usize {
         }
     });
     blended
+}
+
+/// Reads the joints of every skinned model (at the start of `Allocate`, which needs the
+/// region boxes): skinning matrices, which joints moved, each region's world box.
+pub(crate) fn update_skins(
+    mut models: Query<(
+        &mut MultiresInstance,
+        &mut SkinState,
+        &GlobalTransform,
+        &MultiresSkin,
+    )>,
+    globals: Query<&GlobalTransform>,
+) {
+    for (mut instance, mut state, root, joints) in &mut models {
+        let instance = &mut *instance;
+        let Some(world) = &mut instance.skinned_boxes else {
+            continue;
+        };
+        if state.update_matrices(root, &joints.joints, &globals, &instance.obbs, world) {
+            warn_once!(
+                "a skinned MultiresModel names a joint entity without a GlobalTransform; that joint keeps its last pose"
+            );
+        }
+    }
+}
+
+/// `Deform`: blend the cached vertices of skinned regions whose joints moved or whose cache
+/// changed, in parallel over regions (under geomorphs, from where the morphs show them).
+pub(crate) fn deform(
+    mut models: Query<(
+        &mut MultiresInstance,
+        &mut SkinState,
+        Option<&RegionGeomorphs>,
+    )>,
+    mut stats: ResMut<AslodStats>,
+    mut diag: Diagnostics,
+    _main_thread: NonSendMarker,
+) {
+    let start = Instant::now();
+    let mut skinned: Vec<_> = models.iter_mut().collect();
+    let mut work = Vec::with_capacity(skinned.len());
+    for (instance, state, morphs) in &mut skinned {
+        let instance = &mut **instance;
+        let morphs = morphs.map(|m| (&m.morphs, m.now));
+        work.push((
+            &mut instance.caches,
+            &*instance.regions,
+            &mut **state,
+            morphs,
+        ));
+    }
+    let blended = blend_instances(&mut work);
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    stats.deform_ms = ms;
+    stats.vertices_blended = blended;
+    diag.add_measurement(&diagnostics::DEFORM_MS, || ms);
+}
+
+impl SkinState {
+    /// `Upload`: writes what `Deform` produced into the instance's region meshes: index
+    /// buffers that changed, and the vertices blended this frame (only those). Returns the
+    /// regions whose index buffer changed.
+    pub(crate) fn upload(
+        &mut self,
+        instance: &MultiresInstance,
+        target: &mut UploadTarget,
+    ) -> usize {
+        let mut changed = 0;
+        for (r, state) in self.regions.iter_mut().enumerate() {
+            if !state.indices_changed && state.written.is_empty() {
+                continue;
+            }
+            let (Some(&id), Some(&entity)) =
+                (instance.mesh_ids.get(r), instance.region_entities.get(r))
+            else {
+                continue;
+            };
+            let mut swapped = false;
+            if let Some(mesh) = target.mesh(id) {
+                // `state.indices` is rewritten whole before it is read again.
+                swapped = state.indices_changed && swap_indices(mesh, &mut state.indices);
+                if !state.written.is_empty() {
+                    state.swap_vertices(mesh);
+                }
+            }
+            if swapped {
+                changed += 1;
+                target.indices_changed(id, entity);
+            }
+            if !state.written.is_empty() {
+                target.vertices_changed(id, &state.written, swapped);
+            }
+            state.indices_changed = false;
+            state.written.clear();
+        }
+        changed
+    }
+}
+
+impl RegionSkin {
+    /// Swaps the blended positions and normals with the mesh's (see
+    /// [`positions`](Self::positions)): no copy.
+    fn swap_vertices(&mut self, mesh: &mut Mesh) {
+        let normals = self.has_normals.then_some(&mut self.normals);
+        for (attribute, values) in [
+            (Mesh::ATTRIBUTE_POSITION, Some(&mut self.positions)),
+            (Mesh::ATTRIBUTE_NORMAL, normals),
+        ] {
+            let Some(values) = values else { continue };
+            if let Ok(Some(VertexAttributeValues::Float32x3(slots))) =
+                mesh.try_attribute_mut_option(attribute)
+            {
+                if slots.len() == values.len() {
+                    std::mem::swap(slots, values);
+                } else {
+                    warn_once!("a skinned region mesh has the wrong vertex count; not updated");
+                }
+            }
+        }
+    }
 }

@@ -1,0 +1,189 @@
+//! The plugin's public components and resources: what an app sets ([`PolygonBudget`],
+//! [`MultiresModel`], [`LodPriority`], [`Geomorph`], ...) and what it reads ([`AslodStats`]).
+
+use super::asset::MultiresMesh;
+use crate::budget::{AllocationParams, DEFAULT_ALPHA, DEFAULT_BUDGET};
+use bevy::prelude::*;
+
+/// The global polygon budget and how it is split (the paper's allocator node).
+#[derive(Resource, Reflect, Clone, Debug, PartialEq)]
+#[reflect(Resource, Default)]
+pub struct PolygonBudget {
+    /// `P`: the most triangles all multiresolution regions and the [`CountInBudget`] meshes
+    /// may show together. Must be positive; `0` is warned about and skipped.
+    ///
+    /// Default: `100_000` ([`DEFAULT_BUDGET`], as the core allocator's).
+    pub total: u32,
+    /// α: `pᵢ ∝ wᵢ^(1/α)`; `1` proportional to screen area, larger flattens towards an equal
+    /// split. Must be positive.
+    ///
+    /// Default: `3` ([`DEFAULT_ALPHA`], the paper's).
+    pub alpha: f32,
+    /// Hysteresis ε: a region keeps its level while its new target stays within this many
+    /// triangles of its current count.
+    ///
+    /// Default: `0`.
+    pub hysteresis: u32,
+}
+
+impl Default for PolygonBudget {
+    fn default() -> Self {
+        Self {
+            total: DEFAULT_BUDGET,
+            alpha: DEFAULT_ALPHA,
+            hysteresis: 0,
+        }
+    }
+}
+
+impl PolygonBudget {
+    /// The allocator's parameters for a fixed cost.
+    #[must_use]
+    pub fn params(&self, fixed_cost: u32) -> AllocationParams {
+        AllocationParams {
+            budget: self.total,
+            fixed_cost,
+            alpha: self.alpha,
+            hysteresis: self.hysteresis,
+        }
+    }
+}
+
+/// The "no LOD" switch: while it is `true`, every region of every model is kept at its full
+/// detail, whatever the budget and wherever the camera looks (regions out of view too), so an
+/// app can compare the same scene with and without LOD. Like the budget, it is applied in
+/// `Allocate`, which needs an active 3D camera. Skinned regions still blend only when their
+/// bones move. Default `false`.
+#[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Resource, Default)]
+pub struct FullDetail(pub bool);
+
+/// The user priority `c` of a model: its regions weigh `c · A`. Without it `c = 1`; `0`
+/// keeps the model at its coarsest level. Negative or non-finite values count as `0`.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component)]
+pub struct LodPriority(pub f32);
+
+impl Default for LodPriority {
+    fn default() -> Self {
+        Self(1.0)
+    }
+}
+
+/// A multiresolution model: the plugin gives this entity one child per region of the mesh.
+/// Put it next to a `MeshMaterial3d<StandardMaterial>` (or of another material with a
+/// [`MultiresMaterialPlugin`](super::MultiresMaterialPlugin)) and a `Transform`.
+///
+/// The children are made once, when the asset is loaded, with the material the model has
+/// then; changing the handle or the material later does not rebuild them: despawn the model
+/// and spawn it again.
+#[derive(Component, Clone, Debug, PartialEq, Eq)]
+#[require(Transform, Visibility)]
+pub struct MultiresModel(pub Handle<MultiresMesh>);
+
+/// Geomorphs on a [`MultiresModel`]: its level changes take this many seconds instead of
+/// a frame (`regions::Geomorphs`). A refining region changes its triangles at once and its
+/// new vertices grow out of their representatives; a coarsening region keeps its triangles,
+/// and counts them, until its vanishing vertices have reached their representatives. The
+/// allocation is the view's, whatever is morphing; the budget holds because refinements only
+/// take the triangles that are free, so one that needs a coarsening's triangles waits for
+/// them (a lower [`PolygonBudget`] is met once the coarsening regions arrive, after the
+/// morph time). Borders stay closed: a vertex moves the same way in every region that draws
+/// it. `0` (or no component) changes levels at once; [`Default`] is
+/// [`DEFAULT_SECONDS`](Self::DEFAULT_SECONDS). A model's first levels (when it is new, or
+/// gets the component) are taken at once. A [`MultiresScene`](super::MultiresScene) with one gives it to every
+/// model it makes.
+///
+/// Unskinned models with a [`GeomorphMaterial`](super::GeomorphMaterial) (or another material with [`GpuGeomorph`](super::GpuGeomorph))
+/// are interpolated by the vertex shaders: a vertex is written once, when a morph starts
+/// on it. With any other material their moving regions' positions and normals are written
+/// from the CPU each frame they move. Skinned models blend their moving vertices in
+/// `Deform`, from where the morphs show them in the bind pose.
+///
+/// [`ViewDependent`](super::ViewDependent) models morph between their variable-resolution levels
+/// (`refine::VariableGeomorphs`) the same way, collapse by collapse.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Default)]
+pub struct Geomorph(pub f32);
+
+impl Geomorph {
+    /// The default morph time: a quarter second.
+    pub const DEFAULT_SECONDS: f32 = 0.25;
+}
+
+impl Default for Geomorph {
+    fn default() -> Self {
+        Self(Self::DEFAULT_SECONDS)
+    }
+}
+
+/// A region child of a [`MultiresModel`]: which region of the mesh its `Mesh3d` shows.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq, Eq)]
+#[reflect(Component)]
+pub struct LodRegion {
+    /// Index into the mesh's regions.
+    pub region: usize,
+}
+
+/// A conventional (not multiresolution) `Mesh3d` whose triangles count against the budget
+/// as fixed cost: `P' = P − Σ its triangles`.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component)]
+pub struct CountInBudget;
+
+/// The child that draws a [`ViewDependent`](super::ViewDependent) model's variable-resolution
+/// level (the plugin spawns it), as [`LodRegion`] marks the children that draw its regions.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ViewDependentLevel;
+
+/// [`ViewDependentLevel`] under the name of the level it draws (a variable-resolution level).
+pub type VariableLevel = ViewDependentLevel;
+
+/// The viewport size in pixels for cameras whose size is not known yet (no render target,
+/// as in a headless test, or the first frame). A camera with a known viewport
+/// (`Camera::physical_viewport_size`) uses its own. Without this resource such cameras are
+/// skipped; with no usable camera, allocation does nothing that frame.
+#[derive(Resource, Clone, Copy, Debug, PartialEq)]
+pub struct AslodViewport(pub Vec2);
+
+/// Whether the debug overlay is on (ASLOD Figure 10): each region's world box, coloured from
+/// blue (coarsest) to red (full detail), and its triangle count as a label ([`OverlayLabel`](super::OverlayLabel)
+/// UI nodes, at most [`MAX_OVERLAY_LABELS`](super::MAX_OVERLAY_LABELS)). Needs `GizmoPlugin`, part of `DefaultPlugins`.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AslodOverlay(pub bool);
+
+/// What the plugin did in the last frame; also published as diagnostics ([`diagnostics`](super::diagnostics)).
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+pub struct AslodStats {
+    /// Triangles of all region instances after `SelectLod`.
+    pub triangles: u64,
+    /// `P` of the frame.
+    pub budget: u32,
+    /// Triangles of the [`CountInBudget`] meshes.
+    pub fixed_cost: u32,
+    /// Models and regions seen.
+    pub models: usize,
+    /// Region instances seen.
+    pub regions: usize,
+    /// Cameras used.
+    pub cameras: usize,
+    /// Whether `Allocate` split the budget this frame (it needs a camera and a valid
+    /// budget); when it did not, every model keeps its levels.
+    pub allocated: bool,
+    /// Milliseconds in `Allocate`.
+    pub allocation_ms: f64,
+    /// Milliseconds in `SelectLod` and `Upload`.
+    pub update_ms: f64,
+    /// Milliseconds in `Upload` alone (part of `update_ms`).
+    pub upload_ms: f64,
+    /// Milliseconds in `Deform` (skinned models; near `0` when no joint moved).
+    pub deform_ms: f64,
+    /// Vertices blended in `Deform`.
+    pub vertices_blended: usize,
+    /// Regions whose index buffer was rewritten.
+    pub regions_changed: usize,
+    /// Bytes of region mesh data handed to the renderer in `Upload`: the new index buffers
+    /// and blended vertex runs ([`RegionUpload::IndicesOnly`](super::RegionUpload::IndicesOnly), `0` without a render sub-app),
+    /// or every changed mesh's whole vertex and index data ([`RegionUpload::WholeMesh`](super::RegionUpload::WholeMesh)).
+    pub upload_bytes: u64,
+}

@@ -1,0 +1,335 @@
+//! `Spawn`: a model's state and children come and go with its asset and its components.
+//! New models whose asset is loaded get their region children and state
+//! ([`spawn_regions`]); a changed asset rebuilds them ([`mark_modified`]); a
+//! [`ViewDependent`] that comes or goes adds or removes the child drawing its level
+//! ([`sync_view_dependent`]); a model that goes frees what it made
+//! ([`remove_region_meshes`]).
+
+use super::asset::MultiresMesh;
+use super::components::{LodRegion, MultiresModel, ViewDependentLevel};
+use super::geomorph::RegionGeomorphs;
+use super::instance::{AllocationSlot, MultiresInstance, Rebuild, RegionStaging};
+use super::skin::binding::SkinBinding;
+use super::skin::{MultiresSkin, SkinState, initial_region_mesh};
+use super::view_dependent::{ViewDependent, ViewDependentState};
+use crate::bevy_mesh::to_bevy_mesh;
+use crate::mesh::IndexedMesh;
+use crate::regions::{RegionCaches, RegionMesh};
+use crate::skin::SkinRegionKind;
+use bevy::camera::primitives::{Aabb, MeshAabb};
+use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
+use bevy::ecs::entity::EntityHashSet;
+use bevy::mesh::Indices;
+use bevy::prelude::*;
+
+/// Everything the plugin keeps on a model once its asset is loaded (removed at once on a
+/// rebuild).
+type ModelState = (
+    MultiresInstance,
+    AllocationSlot,
+    RegionStaging,
+    SkinState,
+    RegionGeomorphs,
+    ViewDependentState,
+    Rebuild,
+);
+
+/// Gives every new [`MultiresModel`] whose asset is loaded its region children and state,
+/// and every [`Rebuild`] one new ones (its old state goes first, as on despawn: the
+/// observer frees its regions, and the new state is added, so materials, levels and
+/// geomorphs start over). A skinned asset with a [`MultiresSkin`] puts each rigid region
+/// under its joint entity instead.
+#[allow(clippy::type_complexity)]
+pub(super) fn spawn_regions(
+    mut commands: Commands,
+    models: Query<
+        (Entity, &MultiresModel, Option<&MultiresSkin>, Has<Rebuild>),
+        Or<(Without<MultiresInstance>, With<Rebuild>)>,
+    >,
+    assets: Res<Assets<MultiresMesh>>,
+    mut meshes: ResMut<Assets<Mesh>>,
+) {
+    for (entity, model, joints, rebuild) in &models {
+        if rebuild {
+            commands.entity(entity).remove::<ModelState>();
+        }
+        let Some(asset) = assets.get(&model.0) else {
+            continue; // not loaded yet
+        };
+        let regions = asset.regions().clone();
+        let binding = match (asset.skin(), joints) {
+            (Some(binding), Some(_)) => Some(binding.clone()),
+            (Some(_), None) => {
+                warn!(
+                    "MultiresModel {entity} shows a skinned mesh but has no MultiresSkin: drawn in its bind pose"
+                );
+                None
+            }
+            _ => None,
+        };
+        // Skinned regions start as their bind pose (rigid ones in their bone's space): the
+        // state's buffers and the meshes alike.
+        let initial: Option<Vec<_>> = binding.as_ref().map(|b| {
+            (0..regions.regions().len())
+                .map(|r| initial_region_mesh(b, &regions, r))
+                .collect()
+        });
+        let skin = binding
+            .as_ref()
+            .zip(initial.as_deref())
+            .map(|(b, meshes)| SkinState::new(b.clone(), meshes));
+        let place = Placement {
+            model: entity,
+            binding: binding.as_deref(),
+            joints,
+        };
+        let (handles, region_entities) =
+            spawn_region_entities(&mut commands, &mut meshes, &regions, &place, initial);
+        let targets = regions
+            .regions()
+            .iter()
+            .map(|r| r.min_triangles() as u32)
+            .collect();
+        let staging = RegionStaging::new(&regions);
+        let instance = MultiresInstance {
+            caches: RegionCaches::new(&regions),
+            bounds: asset.bounds(),
+            obbs: asset.obbs().clone(),
+            targets,
+            mesh_ids: handles.iter().map(Handle::id).collect(),
+            meshes: handles,
+            region_entities,
+            skinned_boxes: skin.as_ref().map(|_| Vec::new()),
+            level: None,
+            regions,
+        };
+        let mut model = commands.entity(entity);
+        model.insert((instance, AllocationSlot::default()));
+        // Skinned models stage their index buffers in their skin state.
+        match skin {
+            Some(skin) => model.insert(skin),
+            None => model.insert(staging),
+        };
+    }
+}
+
+/// Where a model's region children go: under the model, or (skinned, rigid) under their
+/// bone's joint entity.
+struct Placement<'a> {
+    model: Entity,
+    binding: Option<&'a SkinBinding>,
+    joints: Option<&'a MultiresSkin>,
+}
+
+/// Spawns one child per region, each with its own mesh (skinned regions: their `initial`
+/// bind-pose meshes); returns the meshes and the entities, by region.
+fn spawn_region_entities(
+    commands: &mut Commands,
+    meshes: &mut Assets<Mesh>,
+    regions: &RegionMesh,
+    place: &Placement,
+    initial: Option<Vec<IndexedMesh>>,
+) -> (Vec<Handle<Mesh>>, Vec<Entity>) {
+    let mut initial = initial.map(Vec::into_iter);
+    let mut handles = Vec::with_capacity(regions.regions().len());
+    let mut entities = Vec::with_capacity(regions.regions().len());
+    for (r, region) in regions.regions().iter().enumerate() {
+        let (mesh, parent, rigid) = match (place.binding, initial.as_mut().and_then(Iterator::next))
+        {
+            (Some(binding), Some(mesh)) => match binding.kinds()[r] {
+                SkinRegionKind::Rigid { bone } => {
+                    match place.joints.and_then(|j| j.joints.get(bone as usize)) {
+                        Some(&joint) => (mesh, joint, true),
+                        None => {
+                            warn!(
+                                "MultiresModel {}: joint {bone} is missing; its rigid region stays at the model",
+                                place.model
+                            );
+                            (mesh, place.model, false)
+                        }
+                    }
+                }
+                SkinRegionKind::Deformable { .. } => (mesh, place.model, false),
+            },
+            _ => (
+                region.progressive_mesh().vertices().clone(),
+                place.model,
+                false,
+            ),
+        };
+        let (bevy_mesh, aabb) = placeholder_mesh(mesh, region.fits_u16());
+        let handle = meshes.add(bevy_mesh);
+        let mut child = commands.spawn((
+            Mesh3d(handle.clone()),
+            LodRegion { region: r },
+            Transform::default(),
+            ChildOf(parent),
+            aabb,
+            NoAutoAabb,
+        ));
+        if place.binding.is_some() && !rigid {
+            // Its vertices move every frame: Bevy's box from the bind pose is stale.
+            child.insert(NoFrustumCulling);
+        }
+        entities.push(child.id());
+        handles.push(handle);
+    }
+    (handles, entities)
+}
+
+/// The Bevy mesh of a region or a variable-resolution level before its first level: the
+/// vertex table (joints and weights left out: the plugin skins on the CPU) and one degenerate
+/// triangle in the index width the levels use, so the renderer gives the mesh its index
+/// allocation from the start. With it, the box of every vertex, as Bevy would compute it: the
+/// plugin keeps it, since level changes do not go through the asset's change events.
+fn placeholder_mesh(vertices: IndexedMesh, narrow: bool) -> (Mesh, Aabb) {
+    let mut mesh = to_bevy_mesh(
+        &IndexedMesh {
+            joints: None,
+            weights: None,
+            ..vertices
+        },
+        &[],
+    );
+    mesh.insert_indices(if narrow {
+        Indices::U16(vec![0; 3])
+    } else {
+        Indices::U32(vec![0; 3])
+    });
+    let aabb = mesh.compute_aabb().unwrap_or_default();
+    (mesh, aabb)
+}
+
+/// Hot reload: every model showing a [`MultiresMesh`] that changed is marked [`Rebuild`], so
+/// [`spawn_regions`] builds it anew from the new asset.
+pub(super) fn mark_modified(
+    mut commands: Commands,
+    mut events: MessageReader<AssetEvent<MultiresMesh>>,
+    models: Query<(Entity, &MultiresModel), With<MultiresInstance>>,
+) {
+    let mut modified = Vec::new();
+    for event in events.read() {
+        if let AssetEvent::Modified { id } = event {
+            modified.push(*id);
+        }
+    }
+    if modified.is_empty() {
+        return;
+    }
+    for (model, handle) in &models {
+        if modified.contains(&handle.0.id()) {
+            commands.entity(model).insert(Rebuild);
+        }
+    }
+}
+
+/// Starts and stops the view-dependent refinement of models as their [`ViewDependent`] comes
+/// and goes: gives the model a child drawing its variable-resolution level and hides its
+/// regions, or despawns that child, frees its mesh and shows the regions again. Skinned
+/// models keep their regions.
+#[allow(clippy::type_complexity)]
+pub(super) fn sync_view_dependent(
+    mut commands: Commands,
+    mut models: Query<(
+        Entity,
+        &mut MultiresInstance,
+        &MultiresModel,
+        Option<Ref<ViewDependent>>,
+        Option<&mut ViewDependentState>,
+        Option<&mut RegionStaging>,
+        Has<SkinState>,
+    )>,
+    assets: Res<Assets<MultiresMesh>>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut warned: Local<EntityHashSet>,
+) {
+    for (entity, mut instance, model, settings, state, staging, skinned) in &mut models {
+        match (state, settings) {
+            (None, None) => {}
+            (Some(mut state), Some(settings)) => {
+                if settings.is_changed() {
+                    state.set_settings((*settings).clone());
+                }
+            }
+            (Some(state), None) => {
+                commands.entity(state.entity).try_despawn();
+                meshes.remove(&state.handle);
+                commands.entity(entity).remove::<ViewDependentState>();
+                instance.level = None;
+                for &region in &instance.region_entities {
+                    commands.entity(region).try_insert(Visibility::Inherited);
+                }
+                // The regions kept their levels and their meshes; the next allocation moves them.
+                if let Some(mut staging) = staging {
+                    staging.settled = false;
+                }
+                warned.remove(&entity);
+            }
+            (None, Some(settings)) => {
+                let variable = assets.get(&model.0).and_then(|a| a.variable().cloned());
+                let reason = if skinned {
+                    Some("it is skinned, and skinned models keep their regions")
+                } else if variable.is_none() {
+                    Some("its MultiresMesh has no refinement data (MultiresMesh::with_refinement)")
+                } else {
+                    None
+                };
+                if let Some(reason) = reason {
+                    if warned.insert(entity) {
+                        warn!(
+                            "MultiresModel {entity} is ViewDependent but keeps its regions: {reason}"
+                        );
+                    }
+                    continue;
+                }
+                let Some(variable) = variable else { continue };
+                let narrow = variable.mesh().vertices().vertex_count() <= usize::from(u16::MAX);
+                let (mesh, aabb) = placeholder_mesh(variable.mesh().vertices().clone(), narrow);
+                let handle = meshes.add(mesh);
+                let child = commands
+                    .spawn((
+                        Mesh3d(handle.clone()),
+                        ViewDependentLevel,
+                        Transform::default(),
+                        ChildOf(entity),
+                        aabb,
+                        NoAutoAabb,
+                    ))
+                    .id();
+                for &region in &instance.region_entities {
+                    commands.entity(region).try_insert(Visibility::Hidden);
+                }
+                let state =
+                    ViewDependentState::new(variable, child, handle, narrow, (*settings).clone());
+                instance.level = Some(state.summary());
+                commands.entity(entity).insert(state);
+            }
+        }
+    }
+}
+
+/// Removes a model's region entities (those under the model and those under joints), the
+/// child drawing its view-dependent level, and their meshes, when its instance goes away.
+pub(super) fn remove_region_meshes(
+    remove: On<Remove, MultiresInstance>,
+    mut commands: Commands,
+    instances: Query<(&MultiresInstance, Option<&ViewDependentState>)>,
+    meshes: Option<ResMut<Assets<Mesh>>>,
+) {
+    let Ok((instance, view_dependent)) = instances.get(remove.entity) else {
+        return;
+    };
+    for entity in instance.drawn_entities() {
+        commands.entity(entity).try_despawn();
+    }
+    let Some(mut meshes) = meshes else {
+        return;
+    };
+    for handle in instance
+        .meshes
+        .iter()
+        .chain(view_dependent.map(|v| &v.handle))
+    {
+        meshes.remove(handle);
+    }
+}
