@@ -199,7 +199,7 @@ fn resolve(
         // in a file with a folder of its own).
         Some(first) => {
             let mut child = here.to_vec();
-            child.push(first.clone());
+            child.push(first.to_owned());
             if !modules.contains_key(&child) {
                 return None;
             }

@@ -34,7 +34,8 @@ use bevy::mesh::{Indices, Mesh};
 use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
 use bevy::render::mesh::allocator::{
-    ElementClass, MeshAllocationKey, MeshAllocator, MeshAllocatorSettings, allocate_and_free_meshes,
+    ElementClass, ElementLayout, MeshAllocationKey, MeshAllocator, MeshAllocatorSettings,
+    allocate_and_free_meshes,
 };
 use bevy::render::mesh::{RenderMesh, RenderMeshBufferInfo};
 use bevy::render::render_asset::{ExtractedAssets, RenderAssets, prepare_assets};
@@ -465,16 +466,49 @@ fn apply_writes(
     let mut deferred = std::mem::take(&mut pending.deferred);
     let removed = std::mem::take(&mut pending.removed);
     let batches = [&deferred, &pending.batch];
+    let mut gpu = Gpu {
+        allocator: &mut allocator,
+        settings: &settings,
+        meshes: &mut meshes,
+        device: &device,
+        queue: &queue,
+    };
+    let mut later = WriteBatch::default();
+    let ready = ready_index_writes(&batches, &gpu, &removed, &mut later);
+    gpu.reallocate(&batches, &ready);
+    // The bytes go to the GPU in one write into a staging buffer and one copy per region
+    // into its place in the slabs: a queue write per region costs a staging allocation each.
+    let staging = &mut *staging;
+    staging.bytes.clear();
+    staging.copies.clear();
+    gpu.stage_indices(&batches, &ready, staging, &mut stats);
+    gpu.stage_vertices(&batches, &removed, staging, &mut later, &mut stats);
+    staging.submit(&device, &queue);
+    stats.copies = staging.merged as u32;
+    stats.write_ms = start.elapsed().as_secs_f64() * 1e3;
+    stats.deferred = (later.indices.len() + later.vertices.len()) as u32;
+    deferred.clear();
+    pending.deferred = later;
+    pending.removed = removed;
+}
 
-    // Replace the index allocations: the new size for each mesh, in one allocation stage
-    // (the old one is freed first), then the bytes. A mesh Bevy has not prepared yet (its
-    // first frame was throttled, say) keeps its write for the next frame.
-    // Only the newest write of a mesh counts: two allocations of one key in a stage would
-    // leave the first copy without a place to go.
+/// An index write whose mesh Bevy has prepared: its batch, its place in the batch, its
+/// allocation and the slab layout it goes into.
+type ReadyIndexWrite = (usize, usize, MeshAllocationKey, ElementLayout);
+
+/// The index writes to make now: only the newest write of each mesh counts (two
+/// allocations of one key in a stage would leave the first copy without a place to go). A
+/// mesh Bevy has not prepared yet (its first frame was throttled, say) keeps its write for
+/// the next frame, in `later`; a mesh that is gone takes its writes along.
+fn ready_index_writes(
+    batches: &[&WriteBatch; 2],
+    gpu: &Gpu,
+    removed: &HashSet<AssetId<Mesh>>,
+    later: &mut WriteBatch,
+) -> Vec<ReadyIndexWrite> {
     let mut ready = Vec::new();
     let mut seen = HashSet::new();
     let mut layouts = [None; 2];
-    let mut later = WriteBatch::default();
     for (b, batch) in batches.iter().enumerate().rev() {
         for (w, write) in batch.indices.iter().enumerate().rev() {
             if !seen.insert(write.mesh) {
@@ -483,14 +517,18 @@ fn apply_writes(
             let key = MeshAllocationKey::new(write.mesh, ElementClass::Index);
             // A mesh Bevy has prepared has its allocations. Every index slab of one width has
             // the same element layout: it is looked up once per width.
-            let format = meshes.get(write.mesh).and_then(RenderMesh::index_format);
+            let format = gpu
+                .meshes
+                .get(write.mesh)
+                .and_then(RenderMesh::index_format);
             let layout = format.and_then(|format| {
                 let slot = &mut layouts[usize::from(format == IndexFormat::Uint32)];
                 if slot.is_none() {
-                    *slot = allocator
+                    *slot = gpu
+                        .allocator
                         .mesh_slabs(&write.mesh)
                         .and_then(|slabs| slabs.index_slab_id)
-                        .and_then(|slab| allocator.slabs.get(&slab))
+                        .and_then(|slab| gpu.allocator.slabs.get(&slab))
                         .map(|slab| *slab.element_layout());
                 }
                 *slot
@@ -517,101 +555,129 @@ fn apply_writes(
             }
         }
     }
-    // Every old allocation goes first, so the new ones can fill the merged holes one after
-    // another (and their copies merge, below).
-    let mut free = allocator.stage_deallocation();
-    for (_, _, key, _) in &ready {
-        free.free(key);
-    }
-    free.commit();
-    let mut stage = allocator.stage_allocation();
-    for &(b, w, key, layout) in &ready {
-        let write = &batches[b].indices[w];
-        stage.allocate(&key, write.bytes.len() as u64, layout, &settings);
-    }
-    stage.commit(&device, &queue);
+    ready
+}
 
-    // The bytes go to the GPU in one write into a staging buffer and one copy per region
-    // into its place in the slabs: a queue write per region costs a staging allocation each.
-    let staging = &mut *staging;
-    staging.bytes.clear();
-    staging.copies.clear();
-    for &(b, w, key, _) in &ready {
-        let batch = batches[b];
-        let write = &batch.indices[w];
-        let bytes = &batch.arena[write.bytes.clone()];
-        // The allocator gives data this large a slab of its own (its rule, on whole slots).
-        let large = (bytes.len() as u64).next_multiple_of(COPY_BUFFER_ALIGNMENT)
-            >= settings.large_threshold.min(settings.max_slab_size);
-        if large {
-            // A slab of its own is created with its data.
-            allocator.copy_element_data(
-                &key,
-                bytes.len(),
-                |mut slice| slice.copy_from_slice(bytes),
-                &device,
-                &queue,
-            );
-        } else {
-            // Makes the new allocation resident without writing, so its place is known.
-            allocator.copy_element_data(&key, 0, |_| {}, &device, &queue);
-            let Some(slice) = allocator.mesh_index_slice(&write.mesh) else {
-                continue;
-            };
-            let element = if write.wide { 4 } else { 2 };
-            staging.push(slice.buffer, u64::from(slice.range.start) * element, bytes);
+/// The render world's side of the writes: Bevy's mesh allocator and meshes, and the GPU.
+struct Gpu<'a> {
+    allocator: &'a mut MeshAllocator,
+    settings: &'a MeshAllocatorSettings,
+    meshes: &'a mut RenderAssets<RenderMesh>,
+    device: &'a RenderDevice,
+    queue: &'a RenderQueue,
+}
+
+impl Gpu<'_> {
+    /// Replaces the index allocations of the `ready` writes by ones of their new sizes, in
+    /// one allocation stage. Every old allocation goes first, so the new ones can fill the
+    /// merged holes one after another (and their copies merge, in [`Staging::submit`]).
+    fn reallocate(&mut self, batches: &[&WriteBatch; 2], ready: &[ReadyIndexWrite]) {
+        let mut free = self.allocator.stage_deallocation();
+        for (_, _, key, _) in ready {
+            free.free(key);
         }
-        if let Some(mesh) = meshes.get_mut(write.mesh)
-            && let RenderMeshBufferInfo::Indexed { count, .. } = &mut mesh.buffer_info
-        {
-            *count = write.count;
+        free.commit();
+        let mut stage = self.allocator.stage_allocation();
+        for &(b, w, key, layout) in ready {
+            let write = &batches[b].indices[w];
+            stage.allocate(&key, write.bytes.len() as u64, layout, self.settings);
         }
-        stats.index_bytes += bytes.len() as u64;
-        stats.index_writes += 1;
+        stage.commit(self.device, self.queue);
     }
 
-    // Vertices are written in place: the allocation keeps its size and offset.
-    for batch in batches {
-        for write in &batch.vertices {
+    /// Stages the bytes of the `ready` index writes for their new allocations, and gives
+    /// their meshes the new index counts.
+    fn stage_indices(
+        &mut self,
+        batches: &[&WriteBatch; 2],
+        ready: &[ReadyIndexWrite],
+        staging: &mut Staging,
+        stats: &mut RegionUploadStats,
+    ) {
+        let settings = self.settings;
+        for &(b, w, key, _) in ready {
+            let batch = batches[b];
+            let write = &batch.indices[w];
             let bytes = &batch.arena[write.bytes.clone()];
-            let stride = meshes
-                .get(write.mesh)
-                .map(|m| m.layout.0.layout().array_stride);
-            match (allocator.mesh_vertex_slice(&write.mesh), stride) {
-                (Some(slice), Some(stride)) if stride > 0 => {
-                    let count = bytes.len() as u64 / stride;
-                    if u64::from(write.first) + count
-                        > u64::from(slice.range.end - slice.range.start)
-                    {
-                        warn_once!(
-                            "a skinned region's vertex run lies outside its mesh; not written"
-                        );
-                        continue;
+            // The allocator gives data this large a slab of its own (its rule, on whole slots).
+            let large = (bytes.len() as u64).next_multiple_of(COPY_BUFFER_ALIGNMENT)
+                >= settings.large_threshold.min(settings.max_slab_size);
+            if large {
+                // A slab of its own is created with its data.
+                self.allocator.copy_element_data(
+                    &key,
+                    bytes.len(),
+                    |mut slice| slice.copy_from_slice(bytes),
+                    self.device,
+                    self.queue,
+                );
+            } else {
+                // Makes the new allocation resident without writing, so its place is known.
+                self.allocator
+                    .copy_element_data(&key, 0, |_| {}, self.device, self.queue);
+                let Some(slice) = self.allocator.mesh_index_slice(&write.mesh) else {
+                    continue;
+                };
+                let element = if write.wide { 4 } else { 2 };
+                staging.push(slice.buffer, u64::from(slice.range.start) * element, bytes);
+            }
+            if let Some(mesh) = self.meshes.get_mut(write.mesh)
+                && let RenderMeshBufferInfo::Indexed { count, .. } = &mut mesh.buffer_info
+            {
+                *count = write.count;
+            }
+            stats.index_bytes += bytes.len() as u64;
+            stats.index_writes += 1;
+        }
+    }
+
+    /// Stages the vertex runs, in place: the allocation keeps its size and offset. A mesh
+    /// not prepared yet keeps its runs for the next frame, in `later`.
+    fn stage_vertices(
+        &self,
+        batches: &[&WriteBatch; 2],
+        removed: &HashSet<AssetId<Mesh>>,
+        staging: &mut Staging,
+        later: &mut WriteBatch,
+        stats: &mut RegionUploadStats,
+    ) {
+        for batch in batches {
+            for write in &batch.vertices {
+                let bytes = &batch.arena[write.bytes.clone()];
+                let stride = self
+                    .meshes
+                    .get(write.mesh)
+                    .map(|m| m.layout.0.layout().array_stride);
+                match (self.allocator.mesh_vertex_slice(&write.mesh), stride) {
+                    (Some(slice), Some(stride)) if stride > 0 => {
+                        let count = bytes.len() as u64 / stride;
+                        if u64::from(write.first) + count
+                            > u64::from(slice.range.end - slice.range.start)
+                        {
+                            warn_once!(
+                                "a skinned region's vertex run lies outside its mesh; not written"
+                            );
+                            continue;
+                        }
+                        let offset =
+                            (u64::from(slice.range.start) + u64::from(write.first)) * stride;
+                        staging.push(slice.buffer, offset, bytes);
+                        stats.vertex_bytes += bytes.len() as u64;
+                        stats.vertex_writes += 1;
                     }
-                    let offset = (u64::from(slice.range.start) + u64::from(write.first)) * stride;
-                    staging.push(slice.buffer, offset, bytes);
-                    stats.vertex_bytes += bytes.len() as u64;
-                    stats.vertex_writes += 1;
-                }
-                _ if removed.contains(&write.mesh) => {}
-                _ => {
-                    let start = later.arena.len();
-                    later.arena.extend_from_slice(bytes);
-                    later.vertices.push(VertexWrite {
-                        bytes: start..later.arena.len(),
-                        ..write.clone()
-                    });
+                    _ if removed.contains(&write.mesh) => {}
+                    _ => {
+                        let start = later.arena.len();
+                        later.arena.extend_from_slice(bytes);
+                        later.vertices.push(VertexWrite {
+                            bytes: start..later.arena.len(),
+                            ..write.clone()
+                        });
+                    }
                 }
             }
         }
     }
-    staging.submit(&device, &queue);
-    stats.copies = staging.merged as u32;
-    stats.write_ms = start.elapsed().as_secs_f64() * 1e3;
-    stats.deferred = (later.indices.len() + later.vertices.len()) as u32;
-    deferred.clear();
-    pending.deferred = later;
-    pending.removed = removed;
 }
 
 /// The bytes Bevy uploads again when a mesh is re-extracted: its whole vertex table and its

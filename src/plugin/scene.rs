@@ -254,23 +254,32 @@ impl SceneAssetCache {
     }
 }
 
-/// Converts the meshes of every spawned [`MultiresScene`] once they are all loaded.
+/// The mesh entities of scenes, as `convert_scenes` reads them.
+type MeshEntities<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static Mesh3d,
+        Option<&'static SkinnedMesh>,
+        Option<&'static MeshMaterial3d<StandardMaterial>>,
+    ),
+>;
+
+/// Converts the meshes of every spawned [`MultiresScene`] once they are all loaded: starts
+/// the builds it needs (or the loads from its baked file), then, once they are all done,
+/// makes its models.
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 pub(crate) fn convert_scenes(
     mut commands: Commands,
     scenes: Query<(Entity, &MultiresScene, Option<&Geomorph>), Without<MultiresSceneModels>>,
     children: Query<&Children>,
-    mesh_entities: Query<(
-        &Mesh3d,
-        Option<&SkinnedMesh>,
-        Option<&MeshMaterial3d<StandardMaterial>>,
-    )>,
+    mesh_entities: MeshEntities,
     meshes: Res<Assets<Mesh>>,
     bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
     mut multires: ResMut<Assets<MultiresMesh>>,
     mut cache: ResMut<SceneAssetCache>,
     server: Res<AssetServer>,
-    names: Query<&Name>,
+    names: Query<&'static Name>,
 ) {
     // Apps without skinning (no `Assets<SkinnedMeshInverseBindposes>`) can still convert
     // unskinned scenes.
@@ -302,56 +311,109 @@ pub(crate) fn convert_scenes(
             continue;
         }
         // Start the builds this scene needs that nobody started; convert once all are done.
+        let sources = SceneSources {
+            meshes: &meshes,
+            bindposes: &bindposes,
+            names: &names,
+            server: &server,
+        };
         let mut pending = false;
         for &entity in &found {
             let Ok((mesh3d, skin, _)) = mesh_entities.get(entity) else {
                 continue;
             };
-            let Some(mesh) = meshes.get(&mesh3d.0) else {
-                continue;
-            };
-            if mesh.has_morph_targets() {
-                continue;
-            }
-            let key = build_key(mesh3d, skin, options);
-            let built = cache.built.entry(key).or_insert_with(|| {
-                // The conversion copies the mesh here; the build runs on the pool.
-                let inputs = BuildInputs {
-                    indexed: from_bevy_mesh(mesh),
-                    inverse_bindposes: skin.map(|skin| {
-                        bindposes
-                            .get(&skin.inverse_bindposes)
-                            .map(|b| b.to_vec())
-                            .unwrap_or_default()
-                    }),
-                    joint_names: skin.map_or_else(Vec::new, |skin| {
-                        skin.joints
-                            .iter()
-                            .map(|&j| {
-                                names
-                                    .get(j)
-                                    .map_or_else(|_| String::new(), |n| n.as_str().to_owned())
-                            })
-                            .collect()
-                    }),
-                    rigid_delta: options.rigid_delta,
-                    static_partition: options.static_partition,
-                };
-                let label = mesh3d.0.path().and_then(|p| p.label());
-                match (&options.baked, label) {
-                    (Some(file), Some(label)) => {
-                        Built::Loading(server.load(format!("{file}#{label}")), Box::new(inputs))
-                    }
-                    _ => inputs.spawn(),
-                }
-            });
-            pending |= matches!(built, Built::Pending(_) | Built::Loading(..));
+            pending |= cache.start_build(mesh3d, skin, options, &sources);
         }
         if pending {
             continue;
         }
+        let result = cache.make_models(
+            &mut commands,
+            &found,
+            &mesh_entities,
+            &meshes,
+            geomorph,
+            options,
+        );
+        commands.entity(root).insert(result);
+    }
+}
+
+/// What a scene's builds are started from.
+struct SceneSources<'a, 'w, 's> {
+    meshes: &'a Assets<Mesh>,
+    bindposes: &'a Assets<SkinnedMeshInverseBindposes>,
+    names: &'a Query<'w, 's, &'static Name>,
+    server: &'a AssetServer,
+}
+
+impl SceneAssetCache {
+    /// Starts the build (or the load from the baked file) of one mesh of a scene unless it
+    /// was started already; returns whether it is still under way.
+    fn start_build(
+        &mut self,
+        mesh3d: &Mesh3d,
+        skin: Option<&SkinnedMesh>,
+        options: &MultiresScene,
+        sources: &SceneSources<'_, '_, '_>,
+    ) -> bool {
+        let Some(mesh) = sources.meshes.get(&mesh3d.0) else {
+            return false;
+        };
+        if mesh.has_morph_targets() {
+            return false;
+        }
+        let key = build_key(mesh3d, skin, options);
+        let built = self.built.entry(key).or_insert_with(|| {
+            // The conversion copies the mesh here; the build runs on the pool.
+            let inputs = BuildInputs {
+                indexed: from_bevy_mesh(mesh),
+                inverse_bindposes: skin.map(|skin| {
+                    sources
+                        .bindposes
+                        .get(&skin.inverse_bindposes)
+                        .map(|b| b.to_vec())
+                        .unwrap_or_default()
+                }),
+                joint_names: skin.map_or_else(Vec::new, |skin| {
+                    skin.joints
+                        .iter()
+                        .map(|&j| {
+                            sources
+                                .names
+                                .get(j)
+                                .map_or_else(|_| String::new(), |n| n.as_str().to_owned())
+                        })
+                        .collect()
+                }),
+                rigid_delta: options.rigid_delta,
+                static_partition: options.static_partition,
+            };
+            let label = mesh3d.0.path().and_then(|p| p.label());
+            match (&options.baked, label) {
+                (Some(file), Some(label)) => Built::Loading(
+                    sources.server.load(format!("{file}#{label}")),
+                    Box::new(inputs),
+                ),
+                _ => inputs.spawn(),
+            }
+        });
+        matches!(built, Built::Pending(_) | Built::Loading(..))
+    }
+
+    /// Makes a scene's models once all of its assets are done: a skinned model under each
+    /// skinned mesh, unskinned meshes models in place, the others conventional.
+    fn make_models(
+        &mut self,
+        commands: &mut Commands,
+        found: &[Entity],
+        mesh_entities: &MeshEntities,
+        meshes: &Assets<Mesh>,
+        geomorph: Option<&Geomorph>,
+        options: &MultiresScene,
+    ) -> MultiresSceneModels {
         let mut result = MultiresSceneModels::default();
-        for entity in found {
+        for &entity in found {
             let Ok((mesh3d, skin, material)) = mesh_entities.get(entity) else {
                 continue;
             };
@@ -359,18 +421,18 @@ pub(crate) fn convert_scenes(
                 continue;
             };
             if mesh.has_morph_targets() {
-                if !cache.warned_morph {
+                if !self.warned_morph {
                     warn!(
                         "meshes with morph targets stay conventional: they count against the polygon budget at full detail"
                     );
-                    cache.warned_morph = true;
+                    self.warned_morph = true;
                 }
                 commands.entity(entity).insert(CountInBudget);
                 result.fixed.push(entity);
                 continue;
             }
             let key = build_key(mesh3d, skin, options);
-            let built = match cache.built.get(&key) {
+            let built = match self.built.get(&key) {
                 Some(Built::Ok(handle, more)) => Some((handle.clone(), *more)),
                 _ => None,
             };
@@ -412,6 +474,6 @@ pub(crate) fn convert_scenes(
                 }
             }
         }
-        commands.entity(root).insert(result);
+        result
     }
 }
