@@ -136,9 +136,6 @@ pub struct CountInBudget;
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ViewDependentLevel;
 
-/// [`ViewDependentLevel`] under the name of the level it draws (a variable-resolution level).
-pub type VariableLevel = ViewDependentLevel;
-
 /// The viewport size in pixels for cameras whose size is not known yet (no render target,
 /// as in a headless test, or the first frame). A camera with a known viewport
 /// (`Camera::physical_viewport_size`) uses its own. Without this resource such cameras are

@@ -76,9 +76,11 @@ mod view_dependent;
 
 pub use asset::{MultiresMesh, PartitionSpec};
 pub use cameras::RefineCamera;
+/// [`ViewDependentLevel`] under the name of what it draws, a variable-resolution level.
+pub use components::ViewDependentLevel as VariableLevel;
 pub use components::{
     AslodOverlay, AslodStats, AslodViewport, CountInBudget, FullDetail, Geomorph, LodPriority,
-    LodRegion, MultiresModel, PolygonBudget, VariableLevel, ViewDependentLevel,
+    LodRegion, MultiresModel, PolygonBudget, ViewDependentLevel,
 };
 pub use error::MultiresError;
 pub use geomorph::{
@@ -176,6 +178,7 @@ impl Plugin for AslodPlugin {
             .init_resource::<cameras::FrameCameras>()
             .init_resource::<allocate::FrameAllocation>()
             .init_resource::<allocate::AllocatorScratch>()
+            .init_resource::<select::SelectStart>()
             .init_resource::<scene::SceneAssetCache>()
             .init_resource::<materials::MaterialsGiven>()
             .add_observer(spawn::remove_region_meshes);

@@ -26,13 +26,18 @@ use bevy::mesh::Indices;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
+/// When `SelectLod` started (for [`AslodStats::update_ms`]).
+#[derive(Resource, Default)]
+pub(crate) struct SelectStart(Option<Instant>);
+
 /// Starts, changes or ends every model's geomorphs as its [`Geomorph`] and material
-/// ([`GpuGeomorph`]) say: a region model's [`RegionGeomorphs`] come and change here (and go
-/// in `Upload`, once every vertex is back at rest); a view-dependent level's live in its
-/// state. A view-dependent model's regions do not morph; skinned models morph on the CPU,
-/// in `Deform`.
+/// ([`GpuGeomorph`]) say: a region model's [`RegionGeomorphs`] come, change and, once
+/// `Upload` has written every vertex back at rest, go here; a view-dependent level's live in
+/// its state. A view-dependent model's regions do not morph; skinned models morph on the
+/// CPU, in `Deform`. (Its commands are applied before [`select_lod`], which follows it.)
 #[allow(clippy::type_complexity)]
 pub(crate) fn sync_geomorphs(
+    mut start: ResMut<SelectStart>,
     mut commands: Commands,
     mut models: Query<(
         Entity,
@@ -45,7 +50,16 @@ pub(crate) fn sync_geomorphs(
         Option<&mut ViewDependentState>,
     )>,
 ) {
+    start.0 = Some(Instant::now());
     for (entity, instance, geomorph, gpu, skinned, morphs, staging, view) in &mut models {
+        // Ended geomorphs that `Upload` wrote back at rest go.
+        let morphs = match morphs {
+            Some(m) if m.is_done() => {
+                commands.entity(entity).remove::<RegionGeomorphs>();
+                None
+            }
+            other => other,
+        };
         let seconds = geomorph.map_or(0.0, |m| m.0);
         let region_seconds = if view.is_some() { 0.0 } else { seconds };
         let region_gpu = gpu && !skinned;
@@ -135,10 +149,11 @@ pub(crate) fn select_lod(
     mut models: Query<ModelQuery>,
     allocation: Res<FrameAllocation>,
     time: Res<Time>,
+    start: Res<SelectStart>,
     mut stats: ResMut<AslodStats>,
     _main_thread: NonSendMarker,
 ) {
-    let start = Instant::now();
+    let start = start.0.unwrap_or_else(Instant::now);
     let clock = Clock::of(&time);
     let mut items: Vec<ModelItem> = models.iter_mut().collect();
     let first = par_chunks(&mut items, |chunk| {

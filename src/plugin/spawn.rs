@@ -22,8 +22,8 @@ use bevy::ecs::entity::EntityHashSet;
 use bevy::mesh::Indices;
 use bevy::prelude::*;
 
-/// Everything the plugin keeps on a model once its asset is loaded (removed at once on a
-/// rebuild).
+/// Everything the plugin keeps on a model once its asset is loaded (removed at once before
+/// it is built: on a rebuild, or when someone removed its `MultiresInstance`).
 type ModelState = (
     MultiresInstance,
     AllocationSlot,
@@ -35,10 +35,10 @@ type ModelState = (
 );
 
 /// Gives every new [`MultiresModel`] whose asset is loaded its region children and state,
-/// and every [`Rebuild`] one new ones (its old state goes first, as on despawn: the
-/// observer frees its regions, and the new state is added, so materials, levels and
-/// geomorphs start over). A skinned asset with a [`MultiresSkin`] puts each rigid region
-/// under its joint entity instead.
+/// and every [`Rebuild`] one new ones. Any old state goes first (as on despawn, the observer
+/// frees its regions), and the new state is added, so materials, levels and geomorphs start
+/// over. A skinned asset with a [`MultiresSkin`] puts each rigid region under its joint
+/// entity instead.
 #[allow(clippy::type_complexity)]
 pub(super) fn spawn_regions(
     mut commands: Commands,
@@ -50,10 +50,11 @@ pub(super) fn spawn_regions(
     mut meshes: ResMut<Assets<Mesh>>,
 ) {
     for (entity, model, joints, rebuild) in &models {
-        if rebuild {
+        let asset = assets.get(&model.0);
+        if rebuild || asset.is_some() {
             commands.entity(entity).remove::<ModelState>();
         }
-        let Some(asset) = assets.get(&model.0) else {
+        let Some(asset) = asset else {
             continue; // not loaded yet
         };
         let regions = asset.regions().clone();

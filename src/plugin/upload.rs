@@ -16,7 +16,6 @@ use bevy::prelude::*;
 
 /// What `Upload` touches of a model.
 type ModelQuery = (
-    Entity,
     &'static mut MultiresInstance,
     Option<&'static mut RegionStaging>,
     Option<&'static mut SkinState>,
@@ -27,10 +26,9 @@ type ModelQuery = (
 /// `Upload`: swap in the index buffers `SelectLod` wrote for dirty regions, write what
 /// `Deform` produced for skinned ones and what geomorphs move, and nothing else. On the
 /// direct path ([`RegionUpload::IndicesOnly`]) the meshes change without a change event and
-/// the new bytes go to the renderer on their own. Geomorphs that ended and are at rest go.
+/// the new bytes go to the renderer on their own.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn upload(
-    mut commands: Commands,
     mut models: Query<ModelQuery>,
     mut meshes: ResMut<Assets<Mesh>>,
     mode: Res<RegionUpload>,
@@ -50,7 +48,7 @@ pub(crate) fn upload(
         aabbs: &mut aabbs,
         bytes: 0,
     };
-    for (entity, mut instance, staging, skin, morphs, view) in &mut models {
+    for (mut instance, staging, skin, morphs, view) in &mut models {
         if let Some(mut view) = view {
             changed += usize::from(view.upload(&mut target));
             // (Its geomorphs may have gone: it shows the refined level now.)
@@ -63,15 +61,10 @@ pub(crate) fn upload(
         if let Some(mut staging) = staging {
             changed += upload_staged(&instance, &mut staging, &mut target, &mut swapped);
         }
-        if let Some(mut morphs) = morphs {
-            if let Some(output) = &mut morphs.output {
-                output.upload(&instance.mesh_ids, &mut target, |r| {
-                    swapped.contains(&(r as u32))
-                });
-            }
-            if morphs.is_done() {
-                commands.entity(entity).try_remove::<RegionGeomorphs>();
-            }
+        if let Some(output) = morphs.and_then(|m| m.into_inner().output.as_mut()) {
+            output.upload(&instance.mesh_ids, &mut target, |r| {
+                swapped.contains(&(r as u32))
+            });
         }
     }
     stats.upload_bytes = target.bytes;

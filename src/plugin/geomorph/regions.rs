@@ -7,7 +7,8 @@ use crate::regions::{Geomorphs, RegionCaches, RegionMesh};
 use bevy::prelude::*;
 
 /// The geomorphs of one region model (skinned or not), added while it has a
-/// [`Geomorph`](super::Geomorph) and removed by `Upload` once they have ended.
+/// [`Geomorph`](crate::plugin::Geomorph) and removed once they have ended and `Upload` has
+/// written every vertex back at rest.
 #[derive(Component, Debug)]
 pub(crate) struct RegionGeomorphs {
     pub(crate) morphs: Geomorphs,
