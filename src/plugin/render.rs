@@ -249,6 +249,7 @@ pub(crate) struct UploadTarget<'a, 'w, 's> {
 impl UploadTarget<'_, '_, '_> {
     /// The region mesh to change: without a change event on the direct path (its bytes go to
     /// the renderer through [`RenderWrites`]), with one on the whole-mesh path.
+    #[inline]
     pub(crate) fn mesh(&mut self, id: AssetId<Mesh>) -> Option<&mut Mesh> {
         if self.direct {
             self.meshes.get_mut_untracked(id)
@@ -261,6 +262,7 @@ impl UploadTarget<'_, '_, '_> {
 
     /// After a region mesh's index buffer changed: queue it and mark the region's box changed
     /// (direct), or count what Bevy re-uploads (whole mesh).
+    #[inline]
     pub(crate) fn indices_changed(&mut self, id: AssetId<Mesh>, entity: Entity) {
         let Some(mesh) = self.meshes.get(id) else {
             return;
@@ -282,6 +284,7 @@ impl UploadTarget<'_, '_, '_> {
     /// After a skinned region's vertices `written` were blended into its mesh: queue the run
     /// from the lowest to the highest (direct), or count what Bevy re-uploads (whole mesh,
     /// unless its indices changed too and were counted already).
+    #[inline]
     pub(crate) fn vertices_changed(&mut self, id: AssetId<Mesh>, written: &[u32], counted: bool) {
         let Some(mesh) = self.meshes.get(id) else {
             return;
@@ -315,6 +318,7 @@ pub(crate) fn swap_indices(mesh: &mut Mesh, buffer: &mut Vec<u32>) -> bool {
 
 /// [`swap_indices`] for a staged buffer of either width; `buffer` keeps its width (a buffer of
 /// the other width that comes back from the mesh, its first one, is dropped).
+#[inline]
 pub(crate) fn swap_staged(mesh: &mut Mesh, buffer: &mut Indices) -> bool {
     let narrow = matches!(buffer, Indices::U16(_));
     match mesh.try_indices_mut_option() {

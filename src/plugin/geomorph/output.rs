@@ -184,8 +184,12 @@ pub(crate) struct MorphOutput {
     /// Per mesh: on the CPU, its vertices moved last frame (so it is written once more at
     /// rest); on the GPU, all of its vertices must be written again.
     moved: Vec<bool>,
-    /// Per mesh: the runs of its vertices `Upload` writes.
-    runs: Vec<Vec<VertexRun>>,
+    /// Per mesh: the (first) run of its vertices `Upload` writes. One slot per mesh, kept
+    /// from frame to frame with its buffers, side by side (`Upload` looks at every one).
+    runs: Vec<VertexRun>,
+    /// This frame's further runs of a mesh (a view-dependent level's vertices restart in
+    /// runs far apart; a region's in one), after its first.
+    more: Vec<(u32, VertexRun)>,
 }
 
 impl MorphOutput {
@@ -195,7 +199,8 @@ impl MorphOutput {
             gpu,
             attributes: false,
             moved: vec![gpu; meshes],
-            runs: (0..meshes).map(|_| Vec::new()).collect(),
+            runs: vec![VertexRun::default(); meshes],
+            more: Vec::new(),
         }
     }
 
@@ -223,11 +228,10 @@ impl MorphOutput {
     /// when it must be written again).
     pub(crate) fn stage(&mut self, source: &mut impl MorphSource, clock: Clock) {
         if !self.gpu {
-            for (m, (moved, runs)) in self.moved.iter_mut().zip(&mut self.runs).enumerate() {
+            self.more.clear();
+            for (m, (moved, run)) in self.moved.iter_mut().zip(&mut self.runs).enumerate() {
                 let moving = source.is_moving(m);
                 if moving || *moved {
-                    runs.resize_with(1, VertexRun::default);
-                    let run = &mut runs[0];
                     source.write_positions(m, clock.now, &mut run.positions);
                     source.write_normals(m, clock.now, &mut run.normals);
                     run.at_rest();
@@ -239,7 +243,8 @@ impl MorphOutput {
         let duration = source.duration();
         let restarted = source.take_restarted();
         let mut rest = restarted.as_slice();
-        for (m, (moved, runs)) in self.moved.iter_mut().zip(&mut self.runs).enumerate() {
+        let mut more = 0;
+        for (m, (moved, run)) in self.moved.iter_mut().zip(&mut self.runs).enumerate() {
             let n = rest.partition_point(|&(mesh, ..)| mesh as usize == m);
             let (mine, after) = rest.split_at(n);
             rest = after;
@@ -250,14 +255,21 @@ impl MorphOutput {
             } else {
                 mine
             };
-            if count == 0 || mine.is_empty() {
+            let Some((&(_, lo, hi), further)) = mine.split_first().filter(|_| count > 0) else {
                 continue;
-            }
-            runs.resize_with(mine.len(), VertexRun::default);
-            for (run, &(_, lo, hi)) in runs.iter_mut().zip(mine) {
+            };
+            run.stage_morphs(lo, source.vertex_morphs(m, lo, hi), duration, clock);
+            for &(_, lo, hi) in further {
+                if more == self.more.len() {
+                    self.more.push((m as u32, VertexRun::default()));
+                }
+                let (mesh, run) = &mut self.more[more];
+                *mesh = m as u32;
                 run.stage_morphs(lo, source.vertex_morphs(m, lo, hi), duration, clock);
+                more += 1;
             }
         }
+        self.more.truncate(more);
     }
 
     /// Writes the staged runs into the meshes (`ids`, one per mesh); on the GPU, first gives
@@ -281,19 +293,24 @@ impl MorphOutput {
             }
             self.attributes = true;
         }
-        for (m, runs) in self.runs.iter_mut().enumerate() {
-            let Some(&id) = ids.get(m) else {
-                continue;
-            };
-            for (i, run) in runs.iter_mut().enumerate() {
-                if run.ready
-                    && let Some(mesh) = target.mesh(id)
-                    && let Some(written) = run.write(mesh)
-                    && !relayout
-                {
-                    // (Counted whole once: when its indices changed too, or by its first run.)
-                    target.vertices_changed(id, &written, swapped(m) || i > 0);
-                }
+        let first = self
+            .runs
+            .iter_mut()
+            .enumerate()
+            .map(|(m, run)| (m, run, false));
+        let more = self
+            .more
+            .iter_mut()
+            .map(|(m, run)| (*m as usize, run, true));
+        for (m, run, further) in first.chain(more) {
+            if run.ready
+                && let Some(&id) = ids.get(m)
+                && let Some(mesh) = target.mesh(id)
+                && let Some(written) = run.write(mesh)
+                && !relayout
+            {
+                // (Counted whole once: when its indices changed too, or by its first run.)
+                target.vertices_changed(id, &written, swapped(m) || further);
             }
         }
     }
