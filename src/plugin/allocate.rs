@@ -12,6 +12,7 @@ use crate::budget::{Allocator, ProjectedAreaCamera, RegionInput};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::query::QueryItem;
 use bevy::ecs::system::NonSendMarker;
+use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
 /// The frame's allocation, for `SelectLod`: one count per input, and which allocation it is.
@@ -80,6 +81,7 @@ pub(crate) fn allocate(
     mut diag: Diagnostics,
     _main_thread: NonSendMarker,
 ) {
+    let start = Instant::now();
     let (frame, scratch) = (&mut *frame, &mut *scratch);
     frame.this_frame = false;
     if cameras.active.is_empty() || models.is_empty() {
@@ -136,9 +138,7 @@ pub(crate) fn allocate(
     }
     stats.allocated = true;
     frame.this_frame = true;
-    let ms = cameras
-        .started
-        .map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3);
+    let ms = cameras.ms + start.elapsed().as_secs_f64() * 1e3;
     stats.allocation_ms = ms;
     diag.add_measurement(&diagnostics::ALLOCATION_MS, || ms);
     diag.add_measurement(&diagnostics::BUDGET, || f64::from(budget.total));

@@ -19,8 +19,9 @@ pub struct RefineCamera;
 /// This frame's cameras, gathered at the start of `Allocate`.
 #[derive(Resource, Default)]
 pub(crate) struct FrameCameras {
-    /// When `Allocate` started (for [`AslodStats::allocation_ms`]).
-    pub(crate) started: Option<Instant>,
+    /// Milliseconds `Allocate`'s systems took so far this frame (for
+    /// [`AslodStats::allocation_ms`]).
+    pub(crate) ms: f64,
     /// The active cameras' projected areas: the allocation weighs regions by what these see.
     pub(crate) active: Vec<ProjectedAreaCamera>,
     /// The cameras view-dependent models may refine for.
@@ -70,8 +71,8 @@ pub(crate) fn gather_cameras(
     mut frame: ResMut<FrameCameras>,
     mut stats: ResMut<AslodStats>,
 ) {
+    let start = Instant::now();
     let frame = &mut *frame;
-    frame.started = Some(Instant::now());
     stats.allocated = false;
     stats.budget = budget.total;
     frame.active.clear();
@@ -123,4 +124,5 @@ pub(crate) fn gather_cameras(
         });
     }
     stats.cameras = frame.active.len();
+    frame.ms = start.elapsed().as_secs_f64() * 1e3;
 }

@@ -167,9 +167,9 @@ pub struct AslodStats {
     /// Whether `Allocate` split the budget this frame (it needs a camera and a valid
     /// budget); when it did not, every model keeps its levels.
     pub allocated: bool,
-    /// Milliseconds in `Allocate`.
+    /// Milliseconds the plugin's systems took in `Allocate`.
     pub allocation_ms: f64,
-    /// Milliseconds in `SelectLod` and `Upload`.
+    /// Milliseconds the plugin's systems took in `SelectLod` and `Upload`.
     pub update_ms: f64,
     /// Milliseconds in `Upload` alone (part of `update_ms`).
     pub upload_ms: f64,

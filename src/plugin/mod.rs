@@ -178,7 +178,7 @@ impl Plugin for AslodPlugin {
             .init_resource::<cameras::FrameCameras>()
             .init_resource::<allocate::FrameAllocation>()
             .init_resource::<allocate::AllocatorScratch>()
-            .init_resource::<select::SelectStart>()
+            .init_resource::<select::SyncTime>()
             .init_resource::<scene::SceneAssetCache>()
             .init_resource::<materials::MaterialsGiven>()
             .add_observer(spawn::remove_region_meshes);

@@ -26,9 +26,9 @@ use bevy::mesh::Indices;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
-/// When `SelectLod` started (for [`AslodStats::update_ms`]).
+/// Milliseconds [`sync_geomorphs`] took this frame (for [`AslodStats::update_ms`]).
 #[derive(Resource, Default)]
-pub(crate) struct SelectStart(Option<Instant>);
+pub(crate) struct SyncTime(f64);
 
 /// Starts, changes or ends every model's geomorphs as its [`Geomorph`] and material
 /// ([`GpuGeomorph`]) say: a region model's [`RegionGeomorphs`] come, change and, once
@@ -37,7 +37,7 @@ pub(crate) struct SelectStart(Option<Instant>);
 /// CPU, in `Deform`. (Its commands are applied before [`select_lod`], which follows it.)
 #[allow(clippy::type_complexity)]
 pub(crate) fn sync_geomorphs(
-    mut start: ResMut<SelectStart>,
+    mut spent: ResMut<SyncTime>,
     mut commands: Commands,
     mut models: Query<(
         Entity,
@@ -50,7 +50,7 @@ pub(crate) fn sync_geomorphs(
         Option<&mut ViewDependentState>,
     )>,
 ) {
-    start.0 = Some(Instant::now());
+    let start = Instant::now();
     for (entity, instance, geomorph, gpu, skinned, morphs, staging, view) in &mut models {
         // Ended geomorphs that `Upload` wrote back at rest go.
         let morphs = match morphs {
@@ -87,6 +87,7 @@ pub(crate) fn sync_geomorphs(
             view.sync_morph(seconds, gpu);
         }
     }
+    spent.0 = start.elapsed().as_secs_f64() * 1e3;
 }
 
 /// A refinement waiting for `SelectLod`'s grant: `triangles` wanted by what of model
@@ -149,11 +150,11 @@ pub(crate) fn select_lod(
     mut models: Query<ModelQuery>,
     allocation: Res<FrameAllocation>,
     time: Res<Time>,
-    start: Res<SelectStart>,
+    sync: Res<SyncTime>,
     mut stats: ResMut<AslodStats>,
     _main_thread: NonSendMarker,
 ) {
-    let start = start.0.unwrap_or_else(Instant::now);
+    let start = Instant::now();
     let clock = Clock::of(&time);
     let mut items: Vec<ModelItem> = models.iter_mut().collect();
     let first = par_chunks(&mut items, |chunk| {
@@ -171,7 +172,7 @@ pub(crate) fn select_lod(
             .sum::<u64>()
     });
     stats.triangles = sums.shown - sums.deferred + second.into_iter().sum::<u64>();
-    stats.update_ms = start.elapsed().as_secs_f64() * 1e3;
+    stats.update_ms = sync.0 + start.elapsed().as_secs_f64() * 1e3;
 }
 
 /// The first pass for one model: its counts from this frame's allocation (when it took

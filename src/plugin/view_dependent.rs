@@ -20,6 +20,7 @@ use crate::refine::{
 };
 use bevy::asset::AssetId;
 use bevy::ecs::system::NonSendMarker;
+use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use std::sync::Arc;
 
@@ -162,7 +163,7 @@ struct LevelMorph {
 /// count is fixed cost for the split. Nothing happens without an active camera (nor is
 /// there an allocation).
 pub(crate) fn aim_view_dependent(
-    cameras: Res<FrameCameras>,
+    mut cameras: ResMut<FrameCameras>,
     full_detail: Res<FullDetail>,
     mut models: Query<(&mut ViewDependentState, &MultiresInstance, &GlobalTransform)>,
     _main_thread: NonSendMarker,
@@ -170,15 +171,18 @@ pub(crate) fn aim_view_dependent(
     if cameras.active.is_empty() || models.is_empty() {
         return;
     }
+    let start = Instant::now();
     let mut items: Vec<_> = models.iter_mut().collect();
+    let views = &cameras.views;
     par_chunks(&mut items, |chunk| {
         for (state, instance, transform) in chunk {
-            state.aim(&instance.bounds, transform, &cameras.views, full_detail.0);
+            state.aim(&instance.bounds, transform, views, full_detail.0);
             if !state.settings.budgeted {
                 state.select();
             }
         }
     });
+    cameras.ms += start.elapsed().as_secs_f64() * 1e3;
 }
 
 impl ViewDependentState {
