@@ -49,10 +49,10 @@ test: deps check-deps
 	$(CARGO) test --all-features --no-run --bench plugin --bench skinned_crowd
 	$(CARGO) test --all-features --doc
 
-# What `cargo add bevy_aslod` pulls: Bevy, glam, gltf, thiserror and log (and bytemuck, which
-# Bevy has anyway, and crc32fast, which gltf's PNG decoder has), so no meshopt (a C++ build),
-# clap or indicatif: those are the `cli` feature's.
-DEFAULT_DEPS := bevy bytemuck crc32fast glam gltf log thiserror
+# What `cargo add bevy_aslod` pulls: Bevy, glam, gltf, thiserror and log (and bytemuck, half and
+# bevy_mikktspace, which Bevy has anyway, and crc32fast, which gltf's PNG decoder has), so no
+# meshopt (a C++ build), clap or indicatif: those are the `cli` feature's.
+DEFAULT_DEPS := bevy bevy_mikktspace bytemuck crc32fast glam gltf half log thiserror
 check-deps:
 	@direct=$$($(CARGO) tree -e normal --depth 1 --prefix none --format '{p}' | sed 1d | cut -d' ' -f1 | sort -u | tr '\n' ' '); \
 	if [ "$$direct" != "$(DEFAULT_DEPS) " ]; then \

@@ -916,3 +916,96 @@ proptest::proptest! {
         let _ = load_gltf_slice(&glb(&json, bin), None);
     }
 }
+
+const WATER_BOTTLE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared/testdata/textured/WaterBottle.glb"
+);
+
+/// The bottle's material has a normal map and its mesh no TANGENT: the importer makes
+/// MikkTSpace tangents, as Bevy's glTF loader does. They are unit, perpendicular to the
+/// normals, with a handedness of ±1, and point where U grows.
+#[test]
+fn a_normal_mapped_gltf_without_tangents_gets_them() {
+    let mesh = load_gltf(Path::new(WATER_BOTTLE))
+        .expect("WaterBottle imports")
+        .mesh;
+    let (normals, uvs) = (mesh.normals.as_ref().unwrap(), mesh.uvs.as_ref().unwrap());
+    let tangents = mesh.tangents.as_ref().expect("tangents made");
+    assert_eq!(tangents.len(), mesh.positions.len());
+    let mut along_u = 0;
+    let triangles: Vec<&[u32]> = mesh.indices.chunks_exact(3).collect();
+    for t in &triangles {
+        let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
+        let (e1, e2) = (
+            mesh.positions[b] - mesh.positions[a],
+            mesh.positions[c] - mesh.positions[a],
+        );
+        let (d1, d2) = (uvs[b] - uvs[a], uvs[c] - uvs[a]);
+        let det = d1.x * d2.y - d2.x * d1.y;
+        if det.abs() < 1e-8 {
+            continue;
+        }
+        // The direction in which U grows on this triangle.
+        let du = ((e1 * d2.y - e2 * d1.y) / det).normalize_or_zero();
+        along_u += usize::from(tangents[a].truncate().dot(du) > 0.5);
+    }
+    // MikkTSpace gives a vertex whose triangles have degenerate UVs a neighbour's tangent,
+    // not always in its own surface: nearly all are.
+    let mut in_surface = 0;
+    for (v, t) in tangents.iter().enumerate() {
+        assert!(
+            (t.truncate().length() - 1.0).abs() < 1e-3,
+            "vertex {v}: {t}"
+        );
+        assert!(t.w == 1.0 || t.w == -1.0, "vertex {v}: handedness {}", t.w);
+        in_surface += usize::from(t.truncate().dot(normals[v]).abs() < 1e-2);
+    }
+    assert!(
+        in_surface * 100 > tangents.len() * 99,
+        "{in_surface} of {} tangents lie in the surface",
+        tangents.len()
+    );
+    eprintln!("{in_surface} of {} tangents in the surface", tangents.len());
+    assert!(
+        along_u * 10 > triangles.len() * 9,
+        "{along_u} of {} triangles have tangents along U",
+        triangles.len()
+    );
+}
+
+/// RobotExpressive has no normal maps: it gets no tangents, and keeps UVs and normals.
+#[test]
+fn a_gltf_without_normal_maps_gets_no_tangents() {
+    let mesh = load_gltf(Path::new(ROBOT))
+        .expect("RobotExpressive imports")
+        .mesh;
+    assert!(mesh.tangents.is_none());
+    assert!(mesh.normals.is_some());
+}
+
+/// Vertex colours go out on the `v` lines (`v x y z r g b`), and the file reads back.
+#[test]
+fn obj_writes_vertex_colours() {
+    use bevy_aslod::mesh::{COLOR_ID, VertexAttribute};
+    let mut mesh = IndexedMesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+        indices: vec![0, 1, 2],
+        ..Default::default()
+    };
+    mesh.attributes.push(VertexAttribute::from_f32(
+        "Vertex_Color",
+        COLOR_ID,
+        &[
+            [1.0, 0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0, 0.5],
+        ],
+    ));
+    let mut bytes = Vec::new();
+    write_obj(&mesh, &mut bytes).unwrap();
+    let text = String::from_utf8(bytes).unwrap();
+    assert!(text.contains("v 1 0 0 0 1 0\n"), "{text}");
+    let back = parse_obj(&text).unwrap();
+    assert_eq!(back.positions, mesh.positions);
+}

@@ -35,6 +35,102 @@ fn small() -> IndexedMesh {
     mesh
 }
 
+/// [`small`] with tangents and further attributes of several formats (every section of
+/// version 3).
+fn full() -> IndexedMesh {
+    let mut mesh = small();
+    common::add_further_attributes(&mut mesh);
+    mesh
+}
+
+#[test]
+fn tangents_and_further_attributes_round_trip() {
+    let mesh = full();
+    let pm = build(&mesh, true);
+    assert_eq!(pm.vertices().tangents, mesh.tangents);
+    assert_eq!(pm.vertices().attributes, mesh.attributes);
+    let bytes = mrm::write_progressive(&pm);
+    let tags: Vec<String> = mrm::sections(&bytes)
+        .unwrap()
+        .into_iter()
+        .map(|(t, _)| t)
+        .collect();
+    assert!(
+        tags.iter().any(|t| t == "TAN") && tags.iter().any(|t| t == "ATTR"),
+        "{tags:?}"
+    );
+    let back = mrm::read_progressive(&bytes).expect("reads");
+    assert_eq!(back, pm);
+    assert_eq!(
+        mrm::write_progressive(&back),
+        bytes,
+        "written the same again"
+    );
+    let file = assets_of(&mesh, "full");
+    let bytes = mrm::write(&file);
+    let back = mrm::read(&bytes).expect("reads");
+    assert_eq!(back, file);
+    for (_, baked) in &back.meshes {
+        for region in baked.regions.regions() {
+            let v = region.progressive_mesh().vertices();
+            assert_eq!(v.attributes.len(), 5);
+            assert!(v.tangents.is_some());
+        }
+    }
+}
+
+#[test]
+fn a_malformed_further_attribute_is_refused_by_name() {
+    let mut mesh = full();
+    mesh.attributes[2].data.pop();
+    let err = mesh.validate().unwrap_err();
+    assert!(err.to_string().contains("Vertex_Wind"), "{err}");
+    let mut mesh = full();
+    mesh.attributes[1].format.components = 3;
+    mesh.attributes[1].data.truncate(mesh.positions.len() * 6);
+    mesh.attributes[1].format.scalar = bevy_aslod::mesh::Scalar::U16;
+    let err = mesh.validate().unwrap_err();
+    assert!(err.to_string().contains("Vertex_Color"), "{err}");
+    let mut mesh = full();
+    let nan = f32::NAN.to_le_bytes();
+    mesh.attributes[0].data[8..12].copy_from_slice(&nan);
+    let err = mesh.validate().unwrap_err();
+    assert!(err.to_string().contains("vertex 1 is NaN"), "{err}");
+}
+
+/// A file of format version 3 with every attribute ([`full`]'s assets; written when
+/// `MRM_WRITE_V3` is set and the format is still version 3): it must keep loading.
+const V3: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/full_v3.mrm");
+
+#[test]
+fn a_version_3_file_still_loads() {
+    if std::env::var_os("MRM_WRITE_V3").is_some() && FORMAT_VERSION == 3 {
+        std::fs::write(V3, mrm::write(&assets_of(&full(), "full"))).unwrap();
+    }
+    let bytes = std::fs::read(V3).expect("the committed version 3 file");
+    assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 3);
+    let file = mrm::read(&bytes).expect("a version 3 file loads");
+    let mesh = full();
+    for (_, baked) in &file.meshes {
+        for region in baked.regions.regions() {
+            let v = region.progressive_mesh().vertices();
+            // Each region's table is a subset of the source's: compare every attribute with its
+            // source vertex's.
+            for (i, &g) in region.global_vertices().iter().enumerate() {
+                let g = g as usize;
+                assert_eq!(
+                    v.tangents.as_ref().unwrap()[i],
+                    mesh.tangents.as_ref().unwrap()[g]
+                );
+                for (a, b) in v.attributes.iter().zip(&mesh.attributes) {
+                    assert_eq!((&a.name, a.id, a.format), (&b.name, b.id, b.format));
+                    assert_eq!(a.record(i), b.record(g), "{} of vertex {g}", a.name);
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn every_layout_and_attribute_round_trips() {
     let wide = grid(300, 230, &[0.0, 0.1, -0.05, 0.2, 0.0]);
@@ -427,6 +523,14 @@ fn damaged_files_are_errors_that_name_where() {
 }
 
 #[test]
+fn damaged_files_with_every_attribute_are_errors_that_name_where() {
+    let good = mrm::write_progressive(&build(&full(), true));
+    damage(&good, |bytes, _| {
+        mrm::read_progressive(bytes).map(|pm| exercise(&pm))
+    });
+}
+
+#[test]
 fn damaged_asset_files_are_errors_that_name_where() {
     let good = mrm::write(&small_assets());
     assert!(containers(&good).len() > 8, "nested containers");
@@ -451,7 +555,13 @@ fn build_info(name: &str, partition: &str, options: BuildOptions) -> BuildInfo {
 
 /// Two small assets: the sphere in clusters with refinement data, and skinned.
 fn small_assets() -> MrmFile {
-    let mesh = small();
+    assets_of(&small(), "small")
+}
+
+/// Two assets of a sphere (of [`small`]'s shape): in clusters with refinement data, and
+/// skinned.
+fn assets_of(mesh: &IndexedMesh, name: &str) -> MrmFile {
+    let mesh = mesh.clone();
     let options = BuildOptions::default().with_view_dependent(true);
     let partition = Partition::clusters(&mesh, 4).unwrap();
     let plain = BakedMesh::build(&mesh, &partition, &options).unwrap();
@@ -472,7 +582,7 @@ fn small_assets() -> MrmFile {
     let skinned = BakedMesh::build_skinned(&skinned, &[Mat4::IDENTITY; 3], names, 0.01).unwrap();
     assert!(skinned.skin.is_some() && skinned.regions.regions().len() > 1);
     MrmFile {
-        build: build_info("small", "clusters 4", options),
+        build: build_info(name, "clusters 4", options),
         meshes: vec![
             ("Mesh0/Primitive0".into(), plain),
             ("Mesh1/Primitive0".into(), skinned),

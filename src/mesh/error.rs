@@ -80,6 +80,16 @@ pub enum MeshError {
         /// The attribute's count.
         found: usize,
     },
+    /// A further vertex attribute ([`VertexAttribute`](super::VertexAttribute)) is malformed.
+    #[error("vertex attribute {name:?} (id {id}): {problem}")]
+    BadAttribute {
+        /// The attribute's name.
+        name: String,
+        /// Its Bevy id.
+        id: u64,
+        /// What is wrong with it.
+        problem: String,
+    },
     /// The mesh is larger than the crate's index types can address.
     #[error("the mesh is too large: {count} {what}, more than the {limit} this crate can index")]
     TooLarge {

@@ -1,19 +1,25 @@
 //! Indexed triangle meshes: the input of every other module.
 //!
-//! An [`IndexedMesh`] is a vertex table (positions plus optional normals, UVs and skin
-//! joints/weights, all of equal length) and a `u32` index buffer of triangles. Importers for
+//! An [`IndexedMesh`] is a vertex table (positions plus optional normals, UVs, tangents, skin
+//! joints/weights and any further [`VertexAttribute`]s, all of equal length) and a `u32` index buffer of triangles. Importers for
 //! OBJ, PLY and glTF/GLB live in the submodules; [`IndexedMesh::validate`] checks the invariants
 //! every importer guarantees, and returns a [`MeshError`] that names the defect and where it is.
 //!
 //! Conventions: right-handed, Y up (Bevy's), counter-clockwise front faces. Counts are triangle
 //! counts, never index counts, unless a name says `index`.
 
+mod attributes;
 mod error;
 mod gltf_import;
 mod obj;
 mod ply;
+mod tangents;
 mod weld;
 
+pub(crate) use attributes::gather_all;
+pub use attributes::{
+    AttributeFormat, COLOR_ID, STANDARD_IDS, Scalar, TANGENT_ID, UV_1_ID, VertexAttribute,
+};
 pub use error::{MeshError, MeshResult};
 pub use gltf_import::{
     GltfImport, GltfPrimitive, GltfSkinInfo, load_gltf, load_gltf_primitives, load_gltf_slice,
@@ -22,7 +28,7 @@ pub use obj::{load_obj, parse_obj, write_obj, write_obj_groups};
 pub use ply::{load_ply, parse_ply};
 pub use weld::{WeldMap, weld_positions};
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use std::path::Path;
 
 /// An indexed triangle mesh with optional per-vertex attributes.
@@ -42,6 +48,12 @@ pub struct IndexedMesh {
     pub joints: Option<Vec<[u16; 4]>>,
     /// Optional skin weights (glTF `WEIGHTS_0`), matching [`joints`](Self::joints).
     pub weights: Option<Vec<[f32; 4]>>,
+    /// Optional tangents (glTF `TANGENT`, Bevy's `ATTRIBUTE_TANGENT`): `xyz` a unit tangent,
+    /// `w` the handedness (±1) of the bitangent `w · normal × tangent`. Skinned like normals.
+    pub tangents: Option<Vec<Vec4>>,
+    /// Every further attribute (a second UV set, vertex colours, custom attributes), carried
+    /// as bytes, each under a distinct id.
+    pub attributes: Vec<VertexAttribute>,
     /// Triangle list: `3 * triangle_count()` vertex indices.
     pub indices: Vec<u32>,
 }
@@ -161,6 +173,8 @@ impl IndexedMesh {
         check_len("TEXCOORD_0", self.uvs.as_ref().map(Vec::len))?;
         check_len("JOINTS_0", self.joints.as_ref().map(Vec::len))?;
         check_len("WEIGHTS_0", self.weights.as_ref().map(Vec::len))?;
+        check_len("TANGENT", self.tangents.as_ref().map(Vec::len))?;
+        self.validate_attributes()?;
         if let Some(vertex) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(MeshError::NonFiniteCoordinate {
                 attribute: "POSITION",
@@ -184,6 +198,16 @@ impl IndexedMesh {
         {
             return Err(MeshError::NonFiniteCoordinate {
                 attribute: "TEXCOORD_0",
+                vertex,
+            });
+        }
+        if let Some(vertex) = self
+            .tangents
+            .as_ref()
+            .and_then(|v| v.iter().position(|p| !p.is_finite()))
+        {
+            return Err(MeshError::NonFiniteCoordinate {
+                attribute: "TANGENT",
                 vertex,
             });
         }
@@ -220,6 +244,152 @@ impl IndexedMesh {
         Ok(ValidationReport {
             degenerate_triangles_dropped: dropped,
         })
+    }
+
+    /// The further attribute with Bevy id `id`, if the mesh has it.
+    #[must_use]
+    pub fn attribute(&self, id: u64) -> Option<&VertexAttribute> {
+        self.attributes.iter().find(|a| a.id == id)
+    }
+
+    /// The vertex table of `vertices`, in that order, every attribute included, with no
+    /// triangles.
+    #[must_use]
+    pub fn subset(&self, vertices: &[u32]) -> Self {
+        fn pick<T: Copy>(v: &Option<Vec<T>>, vertices: &[u32]) -> Option<Vec<T>> {
+            v.as_ref()
+                .map(|v| vertices.iter().map(|&i| v[i as usize]).collect())
+        }
+        Self {
+            positions: vertices
+                .iter()
+                .map(|&i| self.positions[i as usize])
+                .collect(),
+            normals: pick(&self.normals, vertices),
+            uvs: pick(&self.uvs, vertices),
+            joints: pick(&self.joints, vertices),
+            weights: pick(&self.weights, vertices),
+            tangents: pick(&self.tangents, vertices),
+            attributes: gather_all(&self.attributes, vertices),
+            indices: Vec::new(),
+        }
+    }
+
+    /// The vertex table alone: every attribute, no triangles.
+    #[must_use]
+    pub fn vertex_table(&self) -> Self {
+        Self {
+            positions: self.positions.clone(),
+            normals: self.normals.clone(),
+            uvs: self.uvs.clone(),
+            joints: self.joints.clone(),
+            weights: self.weights.clone(),
+            tangents: self.tangents.clone(),
+            attributes: self.attributes.clone(),
+            indices: Vec::new(),
+        }
+    }
+
+    /// Appends `other`'s vertices. Attributes this table does not have are left out, and
+    /// ones `other` lacks are zero.
+    pub fn append_vertices(&mut self, other: &Self) {
+        fn extend<T: Copy + Default>(to: &mut Option<Vec<T>>, from: &Option<Vec<T>>, n: usize) {
+            if let Some(to) = to.as_mut() {
+                match from {
+                    Some(from) => to.extend_from_slice(from),
+                    None => to.resize(to.len() + n, T::default()),
+                }
+            }
+        }
+        let n = other.positions.len();
+        self.positions.extend_from_slice(&other.positions);
+        extend(&mut self.normals, &other.normals, n);
+        extend(&mut self.uvs, &other.uvs, n);
+        extend(&mut self.joints, &other.joints, n);
+        extend(&mut self.weights, &other.weights, n);
+        extend(&mut self.tangents, &other.tangents, n);
+        for a in &mut self.attributes {
+            let size = a.format.size();
+            match other.attribute(a.id).filter(|b| b.format == a.format) {
+                Some(b) => a.data.extend_from_slice(&b.data),
+                None => a.data.resize(a.data.len() + n * size, 0),
+            }
+        }
+    }
+
+    /// Bytes of the vertex attributes and the index buffer.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        let n = self.vertex_count();
+        n * 12
+            + self.normals.as_ref().map_or(0, |_| n * 12)
+            + self.uvs.as_ref().map_or(0, |_| n * 8)
+            + self.joints.as_ref().map_or(0, |_| n * 8)
+            + self.weights.as_ref().map_or(0, |_| n * 16)
+            + self.tangents.as_ref().map_or(0, |_| n * 16)
+            + self.attributes.iter().map(|a| a.data.len()).sum::<usize>()
+            + self.indices.len() * 4
+    }
+
+    /// Checks a vertex table without triangles (as files store it): one entry per position in
+    /// every attribute, and the further attributes as [`validate`](Self::validate) does.
+    pub(crate) fn validate_vertex_table(&self) -> MeshResult<()> {
+        let n = self.positions.len();
+        for (attribute, len) in [
+            ("NORMAL", self.normals.as_ref().map(Vec::len)),
+            ("TEXCOORD_0", self.uvs.as_ref().map(Vec::len)),
+            ("JOINTS_0", self.joints.as_ref().map(Vec::len)),
+            ("WEIGHTS_0", self.weights.as_ref().map(Vec::len)),
+            ("TANGENT", self.tangents.as_ref().map(Vec::len)),
+        ] {
+            if let Some(found) = len.filter(|&l| l != n) {
+                return Err(MeshError::AttributeCountMismatch {
+                    attribute,
+                    expected: n,
+                    found,
+                });
+            }
+        }
+        self.validate_attributes()
+    }
+
+    /// Checks the further attributes: 1 to 4 components, one record per vertex, distinct ids
+    /// that are not the named attributes', finite floats.
+    fn validate_attributes(&self) -> MeshResult<()> {
+        let n = self.positions.len();
+        for (k, a) in self.attributes.iter().enumerate() {
+            let bad = |problem: String| {
+                Err(MeshError::BadAttribute {
+                    name: a.name.clone(),
+                    id: a.id,
+                    problem,
+                })
+            };
+            if !a.format.is_valid() {
+                return bad(format!(
+                    "{} components of {:?}, a format no vertex buffer has",
+                    a.format.components, a.format.scalar
+                ));
+            }
+            if a.data.len() != n * a.format.size() {
+                return bad(format!(
+                    "{} bytes, expected {} ({n} vertices of {} bytes)",
+                    a.data.len(),
+                    n * a.format.size(),
+                    a.format.size()
+                ));
+            }
+            if STANDARD_IDS.contains(&a.id) && a.id != UV_1_ID && a.id != COLOR_ID {
+                return bad("the id of an attribute the mesh keeps by name".to_string());
+            }
+            if self.attributes[..k].iter().any(|b| b.id == a.id) {
+                return bad("a second attribute with this id".to_string());
+            }
+            if let Some(vertex) = a.first_non_finite() {
+                return bad(format!("vertex {vertex} is NaN or infinite"));
+            }
+        }
+        Ok(())
     }
 
     /// Loads a mesh from a file, choosing the importer by extension (`obj`, `ply`, `gltf`,

@@ -253,7 +253,8 @@ fn resolve_index(part: &str, count: usize, name: &str) -> Result<u32, String> {
         .ok_or_else(|| format!("{name} index {index} is too large"))
 }
 
-/// Writes a mesh as OBJ: `v` lines, then `vt` and `vn` lines where the mesh has them, then one
+/// Writes a mesh as OBJ: `v` lines (`v x y z r g b` where the mesh has vertex colours,
+/// [`COLOR_ID`](super::COLOR_ID)), then `vt` and `vn` lines where the mesh has them, then one
 /// `f` line per triangle with 1-based indices (`a`, `a/a`, `a//a` or `a/a/a`).
 ///
 /// Coordinates are written in Rust's shortest round-trip form, so [`parse_obj`] reads back
@@ -290,8 +291,17 @@ pub fn write_obj_groups(
         mesh.vertex_count(),
         mesh.triangle_count()
     )?;
-    for p in &mesh.positions {
-        writeln!(out, "v {} {} {}", p.x, p.y, p.z)?;
+    // Vertex colours go on the `v` lines (`v x y z r g b`, the extension MeshLab and Blender
+    // read); OBJ has no alpha.
+    let colors = mesh
+        .attribute(super::COLOR_ID)
+        .and_then(|c| c.to_f32::<4>())
+        .filter(|c| c.len() == mesh.positions.len());
+    for (k, p) in mesh.positions.iter().enumerate() {
+        match colors.as_ref().map(|c| c[k]) {
+            Some([r, g, b, _]) => writeln!(out, "v {} {} {} {r} {g} {b}", p.x, p.y, p.z)?,
+            None => writeln!(out, "v {} {} {}", p.x, p.y, p.z)?,
+        }
     }
     for t in mesh.uvs.iter().flatten() {
         writeln!(out, "vt {} {}", t.x, t.y)?;

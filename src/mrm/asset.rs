@@ -14,13 +14,15 @@ pub(super) const FILE_SECTIONS: [([u8; 4], bool); 3] =
     [(*b"SRC ", true), (*b"KEYS", true), (*b"ASET", true)];
 
 /// The sections of one asset (a container nested in `ASET`), in order.
-const ENTRY_SECTIONS: [([u8; 4], bool); 11] = [
+const ENTRY_SECTIONS: [([u8; 4], bool); 13] = [
     (*b"HEAD", true),
     (*b"POS ", true),
     (*b"NRM ", false),
     (*b"UV0 ", false),
     (*b"JNT ", false),
     (*b"WGT ", false),
+    (*b"TAN ", false),
+    (*b"ATTR", false),
     (*b"PART", true),
     (*b"OBBS", true),
     (*b"RGNS", true),

@@ -36,7 +36,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! # Layout (format version 2)
+//! # Layout (format version 3)
 //!
 //! Little-endian throughout. Every file is a **container**, and so are the assets and
 //! regions inside it: a header and a section table,
@@ -66,7 +66,7 @@
 //! | tag | required | contents |
 //! |---|---|---|
 //! | `HEAD` | yes | source vertex count `V` (`u32`); attribute flags (`u8`, as `MESH` below); skinned (`u8`); refinement data (`u8`); a zero byte; region count `R` (`u32`) |
-//! | `POS ` … `WGT ` | as below | the source's vertex table (every region's local table is a subset of it) |
+//! | `POS ` … `ATTR` | as below | the source's vertex table (every region's local table is a subset of it) |
 //! | `PART` | yes | `V` region ids (`u32`), every region holding a vertex |
 //! | `OBBS` | yes | `R` boxes: centre, three axes (columns), half extents (15 × `f32`) |
 //! | `RGNS` | yes | `R` (`u32`), `R` container lengths (`u64`), then the `R` region containers |
@@ -86,12 +86,14 @@
 //!
 //! | tag | required | contents |
 //! |---|---|---|
-//! | `MESH` | yes | vertex count `V` (`u32`); attribute flags (`u8`: 1 normals, 2 UVs, 4 joints, 8 weights); layout (`u8`: 1 narrow, 0 wide); view data (`u8`: 0 or 1); a zero byte; base triangles, index count `I`, steps `S`, corner records `C`, pairs `P` (`u32` each) |
+//! | `MESH` | yes | vertex count `V` (`u32`); attribute flags (`u8`: 1 normals, 2 UVs, 4 joints, 8 weights, 16 tangents, 32 further attributes); layout (`u8`: 1 narrow, 0 wide); view data (`u8`: 0 or 1); a zero byte; base triangles, index count `I`, steps `S`, corner records `C`, pairs `P` (`u32` each) |
 //! | `POS ` | yes | `V` positions, 3 × `f32` |
 //! | `NRM ` | flag 1 | `V` normals, 3 × `f32` |
 //! | `UV0 ` | flag 2 | `V` texture coordinates, 2 × `f32` |
 //! | `JNT ` | flag 4 | `V` × 4 joint indices, `u16` |
 //! | `WGT ` | flag 8 | `V` × 4 weights, `f32` |
+//! | `TAN ` | flag 16 | `V` tangents, 4 × `f32` (from version 3) |
+//! | `ATTR` | flag 32 | further attributes (from version 3): their count `K` (`u32`, at most 32); per attribute its name (string), Bevy id (`u64`), scalar type (`u8`: 0 `f32`, 1 `f16`, 2 `u32`, 3 `i32`, 4 `u16`, 5 `i16`, 6 unorm16, 7 snorm16, 8 `u8`, 9 `i8`, 10 unorm8, 11 snorm8, 12 `f64`, 13 BGRA unorm8), component count (`u8`: 1, 2 or 4; 3 for 32- and 64-bit scalars; 4 for BGRA), two zero bytes, then `V` records |
 //! | `IDX ` | yes | the full-detail index buffer in slot order (base triangles first: coarse to fine), `I` indices (`u16` narrow, `u32` wide) |
 //! | `STEP` | yes | `S` step headers, `corners << 4 \| pairs << 2 \| removed` (`u16` narrow, `u32` wide) |
 //! | `CORN` | yes | `C` corner records, `corner << 1 \| pair` (3 bytes narrow, `u32` wide) |
@@ -128,8 +130,9 @@ use glam::Mat4;
 use thiserror::Error;
 
 /// The format version this crate writes and the newest it reads. Version 1 files hold a
-/// progressive mesh only; they still load.
-pub const FORMAT_VERSION: u32 = 2;
+/// progressive mesh only, and versions 1 and 2 no tangents or further attributes; they
+/// still load.
+pub const FORMAT_VERSION: u32 = 3;
 
 /// Everything a multiresolution asset holds, without Bevy: what an `.mrm` file stores per
 /// entry, and what the plugin's `MultiresMesh` is made from without building anything.
@@ -345,6 +348,9 @@ pub enum MrmError {
         /// What is wrong with it.
         what: &'static str,
     },
+    /// A vertex table's attributes are inconsistent (a count, a format, a non-finite value).
+    #[error("vertex attributes: {0}")]
+    Attributes(String),
 }
 
 impl MrmError {

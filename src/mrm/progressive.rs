@@ -2,20 +2,22 @@
 
 use super::container::{Reader, Section, Sections, f32s};
 use super::{FORMAT_VERSION, MrmError};
-use crate::mesh::IndexedMesh;
+use crate::mesh::{AttributeFormat, IndexedMesh, Scalar, VertexAttribute};
 use crate::multires::ProgressiveMesh;
 use crate::multires::hierarchy::{Moved, ViewData};
 use crate::multires::records::{Corner, Header, Layout, Records, error_from_u16};
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 
 /// The sections, in file order, and whether each is required.
-pub(super) const SECTIONS: [([u8; 4], bool); 12] = [
+pub(super) const SECTIONS: [([u8; 4], bool); 14] = [
     (*b"MESH", true),
     (*b"POS ", true),
     (*b"NRM ", false),
     (*b"UV0 ", false),
     (*b"JNT ", false),
     (*b"WGT ", false),
+    (*b"TAN ", false),
+    (*b"ATTR", false),
     (*b"IDX ", true),
     (*b"STEP", true),
     (*b"CORN", true),
@@ -28,6 +30,13 @@ const NORMALS: u8 = 1;
 const UVS: u8 = 2;
 const JOINTS: u8 = 4;
 const WEIGHTS: u8 = 8;
+/// Tangents (`TAN `, from version 3).
+const TANGENTS: u8 = 16;
+/// Further attributes (`ATTR`, from version 3).
+const FURTHER: u8 = 32;
+/// The most further attributes a vertex table may have in a file (Bevy's vertex buffers take
+/// at most 16 attributes in all on most devices).
+const MAX_FURTHER: usize = 32;
 
 fn vec3s(v: &[Vec3]) -> Vec<u8> {
     v.iter()
@@ -86,7 +95,9 @@ pub(super) fn vertex_sections(v: &IndexedMesh) -> (u8, Sections) {
     let attributes = flag(v.normals.is_some(), NORMALS)
         | flag(v.uvs.is_some(), UVS)
         | flag(v.joints.is_some(), JOINTS)
-        | flag(v.weights.is_some(), WEIGHTS);
+        | flag(v.weights.is_some(), WEIGHTS)
+        | flag(v.tangents.is_some(), TANGENTS)
+        | flag(!v.attributes.is_empty(), FURTHER);
     let mut sections = vec![(*b"POS ", vec3s(&v.positions))];
     if let Some(normals) = &v.normals {
         sections.push((*b"NRM ", vec3s(normals)));
@@ -105,6 +116,24 @@ pub(super) fn vertex_sections(v: &IndexedMesh) -> (u8, Sections) {
     if let Some(weights) = &v.weights {
         let bytes = weights.iter().flatten().flat_map(|w| w.to_le_bytes());
         sections.push((*b"WGT ", bytes.collect()));
+    }
+    if let Some(tangents) = &v.tangents {
+        let bytes = tangents
+            .iter()
+            .flat_map(|t| t.to_array())
+            .flat_map(f32::to_le_bytes);
+        sections.push((*b"TAN ", bytes.collect()));
+    }
+    if !v.attributes.is_empty() {
+        let mut out = (v.attributes.len() as u32).to_le_bytes().to_vec();
+        for a in &v.attributes {
+            out.extend_from_slice(&(a.name.len() as u32).to_le_bytes());
+            out.extend_from_slice(a.name.as_bytes());
+            out.extend_from_slice(&a.id.to_le_bytes());
+            out.extend_from_slice(&[a.format.scalar.code(), a.format.components, 0, 0]);
+            out.extend_from_slice(&a.data);
+        }
+        sections.push((*b"ATTR", out));
     }
     (attributes, sections)
 }
@@ -281,7 +310,7 @@ pub(super) fn read_vertices(
 ) -> Result<IndexedMesh, MrmError> {
     let find = |tag: &[u8; 4]| sections.iter().any(|s| &s.tag == tag);
     let section = |tag: &[u8; 4]| section(sections, tag);
-    if attributes & !(NORMALS | UVS | JOINTS | WEIGHTS) != 0 {
+    if attributes & !(NORMALS | UVS | JOINTS | WEIGHTS | TANGENTS | FURTHER) != 0 {
         return Err(r.invalid(4, "unknown flags"));
     }
     // Each optional section is there exactly when its flag says so.
@@ -290,6 +319,8 @@ pub(super) fn read_vertices(
         (b"UV0 ", attributes & UVS != 0),
         (b"JNT ", attributes & JOINTS != 0),
         (b"WGT ", attributes & WEIGHTS != 0),
+        (b"TAN ", attributes & TANGENTS != 0),
+        (b"ATTR", attributes & FURTHER != 0),
     ] {
         if find(tag) != on {
             return Err(r.invalid(4, "a section is missing or present against the flags"));
@@ -322,14 +353,64 @@ pub(super) fn read_vertices(
         .then(|| Reader::whole::<16, _>(section(b"WGT ")?, n, |b| f32s::<4>(&b)))
         .transpose()?
         .map(|(v, _)| v);
-    Ok(IndexedMesh {
+    let tangents = (attributes & TANGENTS != 0)
+        .then(|| {
+            let (v, r) =
+                Reader::whole::<16, _>(section(b"TAN ")?, n, |b| Vec4::from(f32s::<4>(&b)))?;
+            match v.iter().position(|t| !t.is_finite()) {
+                Some(k) => Err(r.invalid(16 * k, "a value is not finite")),
+                None => Ok(v),
+            }
+        })
+        .transpose()?;
+    let further = if attributes & FURTHER != 0 {
+        read_further(section(b"ATTR")?, n)?
+    } else {
+        Vec::new()
+    };
+    let mesh = IndexedMesh {
         positions,
         normals,
         uvs,
         joints,
         weights,
+        tangents,
+        attributes: further,
         indices: Vec::new(),
-    })
+    };
+    mesh.validate_vertex_table()
+        .map_err(|e| MrmError::Attributes(e.to_string()))?;
+    Ok(mesh)
+}
+
+/// The further attributes of `n` vertices (`ATTR`): a count, then per attribute its name,
+/// id, scalar type, component count, two zero bytes and `n` records.
+fn read_further(section: Section<'_>, n: usize) -> Result<Vec<VertexAttribute>, MrmError> {
+    let mut r = Reader::new(section);
+    let count = r.u32()? as usize;
+    if count > MAX_FURTHER {
+        return Err(r.invalid(0, "more than 32 further attributes"));
+    }
+    let mut out = Vec::with_capacity(count);
+    for _ in 0..count {
+        let name = r.string()?;
+        let id = r.u64()?;
+        let at = r.offset() - r.start();
+        let [scalar, components, pad0, pad1] = r.array::<4>()?;
+        let format = Scalar::from_code(scalar)
+            .map(|scalar| AttributeFormat { scalar, components })
+            .filter(|f| f.is_valid() && pad0 == 0 && pad1 == 0)
+            .ok_or_else(|| r.invalid(at as usize, "an unknown attribute format"))?;
+        let data = r.bytes(n.saturating_mul(format.size()))?.to_vec();
+        out.push(VertexAttribute {
+            name,
+            id,
+            format,
+            data,
+        });
+    }
+    r.finish()?;
+    Ok(out)
 }
 
 /// The counts a mesh header declares.

@@ -1715,15 +1715,7 @@ impl<'a> Builder<'a> {
             ));
             errors.push(error_to_u16(c.error));
         }
-        let source = self.mesh;
-        let vertices = IndexedMesh {
-            positions: source.positions.clone(),
-            normals: source.normals.clone(),
-            uvs: source.uvs.clone(),
-            joints: source.joints.clone(),
-            weights: source.weights.clone(),
-            indices: Vec::new(),
-        };
+        let vertices = self.mesh.vertex_table();
         let records = Unpacked {
             indices,
             steps,

@@ -213,18 +213,7 @@ impl ProgressiveMesh {
     /// representatives this way). `vertices` must have the same attributes as the table. The
     /// records never name them, so their layout does not change.
     pub(crate) fn append_vertices(&mut self, vertices: &IndexedMesh) {
-        fn extend<T: Copy>(to: &mut Option<Vec<T>>, from: &Option<Vec<T>>) {
-            if let (Some(to), Some(from)) = (to.as_mut(), from.as_ref()) {
-                to.extend_from_slice(from);
-            }
-        }
-        self.vertices
-            .positions
-            .extend_from_slice(&vertices.positions);
-        extend(&mut self.vertices.normals, &vertices.normals);
-        extend(&mut self.vertices.uvs, &vertices.uvs);
-        extend(&mut self.vertices.joints, &vertices.joints);
-        extend(&mut self.vertices.weights, &vertices.weights);
+        self.vertices.append_vertices(vertices);
     }
 
     /// Bytes of the shared data: the vertex table, the index buffer, the records, the error
@@ -252,11 +241,5 @@ impl ProgressiveMesh {
 /// Bytes of an indexed mesh's vertex attributes and index buffer.
 #[must_use]
 pub fn indexed_mesh_bytes(mesh: &IndexedMesh) -> usize {
-    let n = mesh.vertex_count();
-    n * 12
-        + mesh.normals.as_ref().map_or(0, |_| n * 12)
-        + mesh.uvs.as_ref().map_or(0, |_| n * 8)
-        + mesh.joints.as_ref().map_or(0, |_| n * 8)
-        + mesh.weights.as_ref().map_or(0, |_| n * 16)
-        + mesh.indices.len() * 4
+    mesh.memory_bytes()
 }

@@ -313,12 +313,41 @@ impl RegionMesh {
         }
         let n = self.vertex_count;
         let r = &self.regions;
+        let attributes = r.first().map_or_else(Vec::new, |first| {
+            first
+                .mesh
+                .vertices()
+                .attributes
+                .iter()
+                .enumerate()
+                .map(|(k, a)| {
+                    let size = a.format.size();
+                    let mut data = vec![0u8; n * size];
+                    for region in r {
+                        let local = &region.mesh.vertices().attributes[k];
+                        for (i, &g) in region.global.iter().enumerate() {
+                            if let Some(slot) =
+                                data.get_mut(g as usize * size..(g as usize + 1) * size)
+                            {
+                                slot.copy_from_slice(local.record(i));
+                            }
+                        }
+                    }
+                    crate::mesh::VertexAttribute {
+                        data,
+                        ..a.without_data()
+                    }
+                })
+                .collect()
+        });
         crate::mesh::IndexedMesh {
             positions: scatter(r, n, |m| Some(&m.positions)).unwrap_or_default(),
             normals: scatter(r, n, |m| m.normals.as_ref()),
             uvs: scatter(r, n, |m| m.uvs.as_ref()),
             joints: scatter(r, n, |m| m.joints.as_ref()),
             weights: scatter(r, n, |m| m.weights.as_ref()),
+            tangents: scatter(r, n, |m| m.tangents.as_ref()),
+            attributes,
             indices: Vec::new(),
         }
     }

@@ -21,19 +21,5 @@ pub(super) fn unite(parent: &mut [u32], a: u32, b: u32) {
 
 /// The attributes of `vertices`, in that order, with no triangles.
 pub(crate) fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
-    fn pick<T: Copy>(v: &Option<Vec<T>>, vertices: &[u32]) -> Option<Vec<T>> {
-        v.as_ref()
-            .map(|v| vertices.iter().map(|&i| v[i as usize]).collect())
-    }
-    IndexedMesh {
-        positions: vertices
-            .iter()
-            .map(|&i| mesh.positions[i as usize])
-            .collect(),
-        normals: pick(&mesh.normals, vertices),
-        uvs: pick(&mesh.uvs, vertices),
-        joints: pick(&mesh.joints, vertices),
-        weights: pick(&mesh.weights, vertices),
-        indices: Vec::new(),
-    }
+    mesh.subset(vertices)
 }

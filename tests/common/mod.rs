@@ -191,3 +191,71 @@ pub fn arb_mesh() -> impl Strategy<Value = (IndexedMesh, bool)> {
             .prop_map(|(w, h, heights)| (grid(w, h, &heights), false)),
     ]
 }
+
+/// Gives `mesh` tangents and further attributes of several formats, each vertex's values
+/// distinct from its neighbours': a second UV set, RGBA colours, a half-float pair, four
+/// integer bytes and a BGRA colour. Every level must carry them unchanged.
+pub fn add_further_attributes(mesh: &mut IndexedMesh) {
+    use bevy_aslod::mesh::{AttributeFormat, COLOR_ID, Scalar, UV_1_ID, VertexAttribute};
+    let n = mesh.positions.len();
+    mesh.tangents = Some(
+        (0..n)
+            .map(|i| {
+                let a = i as f32 * 0.37;
+                glam::Vec4::new(a.cos(), 0.0, a.sin(), if i % 3 == 0 { -1.0 } else { 1.0 })
+            })
+            .collect(),
+    );
+    let uv1: Vec<[f32; 2]> = (0..n).map(|i| [i as f32 / n as f32, 0.25]).collect();
+    let colors: Vec<[f32; 4]> = (0..n)
+        .map(|i| [(i % 7) as f32 / 7.0, (i % 5) as f32 / 5.0, 0.5, 1.0])
+        .collect();
+    let bytes = |format: AttributeFormat, f: &dyn Fn(usize, usize) -> u8| VertexAttribute {
+        name: String::new(),
+        id: 0,
+        format,
+        data: (0..n)
+            .flat_map(|i| (0..format.size()).map(move |k| (i, k)))
+            .map(|(i, k)| f(i, k))
+            .collect(),
+    };
+    let half = AttributeFormat {
+        scalar: Scalar::F16,
+        components: 2,
+    };
+    // Finite half floats: exponent bits never all set.
+    let mut wind = bytes(half, &|i, k| {
+        if k % 2 == 1 {
+            (i % 60) as u8
+        } else {
+            (i * 7 + k) as u8
+        }
+    });
+    wind.name = "Vertex_Wind".into();
+    wind.id = 988_540_917;
+    let mut material = bytes(
+        AttributeFormat {
+            scalar: Scalar::U8,
+            components: 4,
+        },
+        &|i, k| (i * 13 + k) as u8,
+    );
+    material.name = "Vertex_MaterialIds".into();
+    material.id = 988_540_918;
+    let mut tint = bytes(
+        AttributeFormat {
+            scalar: Scalar::Bgra8,
+            components: 4,
+        },
+        &|i, k| (i * 3 + k * 50) as u8,
+    );
+    tint.name = "Vertex_Tint".into();
+    tint.id = 988_540_919;
+    mesh.attributes = vec![
+        VertexAttribute::from_f32("Vertex_Uv_1", UV_1_ID, &uv1),
+        VertexAttribute::from_f32("Vertex_Color", COLOR_ID, &colors),
+        wind,
+        material,
+        tint,
+    ];
+}

@@ -4,6 +4,7 @@
 //! and `baked` (`.mrm` files through the asset server).
 #![cfg(feature = "bevy")]
 
+mod attributes;
 mod baked;
 mod geomorph;
 mod models;

@@ -3,8 +3,11 @@
 use super::accessors::{Data, type_error};
 use super::container::{gltf_error, semantic_name};
 use super::scene::{GltfSkinInfo, Instance};
-use crate::mesh::{IndexedMesh, MeshError, MeshResult, ValidationReport};
-use glam::{Mat3, Vec2, Vec3};
+use crate::mesh::tangents::mikktspace;
+use crate::mesh::{
+    COLOR_ID, IndexedMesh, MeshError, MeshResult, UV_1_ID, ValidationReport, VertexAttribute,
+};
+use glam::{Mat3, Vec2, Vec3, Vec4};
 use gltf::Primitive;
 use gltf::accessor::DataType;
 use gltf::mesh::{Mode, Semantic};
@@ -49,6 +52,9 @@ pub(super) struct Builder {
     uvs: Vec<Vec2>,
     joints: Vec<[u16; 4]>,
     weights: Vec<[f32; 4]>,
+    tangents: Vec<Vec4>,
+    uvs1: Vec<[f32; 2]>,
+    colors: Vec<[f32; 4]>,
     region_ids: Vec<u32>,
     any_region_ids: bool,
     /// Which attributes some, and which all, primitives had.
@@ -57,6 +63,11 @@ pub(super) struct Builder {
     any_uvs: bool,
     any_joints: bool,
     any_weights: bool,
+    any_tangents: bool,
+    any_uvs1: bool,
+    any_colors: bool,
+    /// Attributes of some primitive that the mesh cannot carry, by glTF name.
+    dropped: std::collections::BTreeSet<String>,
     /// Per skin, the map from its joint indices to those of the primary skin (`None` when a
     /// joint node is missing there, which drops the joints).
     joint_maps: Vec<Option<Vec<u16>>>,
@@ -89,6 +100,9 @@ impl Builder {
             uvs: Vec::new(),
             joints: Vec::new(),
             weights: Vec::new(),
+            tangents: Vec::new(),
+            uvs1: Vec::new(),
+            colors: Vec::new(),
             region_ids: Vec::new(),
             any_region_ids: false,
             any_normals: false,
@@ -96,6 +110,10 @@ impl Builder {
             any_uvs: false,
             any_joints: false,
             any_weights: false,
+            any_tangents: false,
+            any_uvs1: false,
+            any_colors: false,
+            dropped: std::collections::BTreeSet::new(),
             joint_maps,
             joint_counts: skins.iter().map(|s| s.joints.len()).collect(),
             joints_unmappable: false,
@@ -152,6 +170,42 @@ impl Builder {
             Some((a, what)) => Some(data.read_floats::<2>(&a, &what)?),
             None => None,
         };
+        let uvs1 = match attribute(Semantic::TexCoords(1)) {
+            Some((a, what)) => Some(data.read_floats::<2>(&a, &what)?),
+            None => None,
+        };
+        let tangents = match attribute(Semantic::Tangents) {
+            Some((a, what)) => Some(data.read_floats::<4>(&a, &what)?),
+            None => None,
+        };
+        let colors = match attribute(Semantic::Colors(0)) {
+            Some((a, what)) if a.dimensions().multiplicity() == 3 => Some(
+                data.read_floats::<3>(&a, &what)?
+                    .into_iter()
+                    .map(|[r, g, b]| [r, g, b, 1.0])
+                    .collect(),
+            ),
+            Some((a, what)) => Some(data.read_floats::<4>(&a, &what)?),
+            None => None,
+        };
+        for (semantic, _) in primitive.attributes() {
+            let carried = matches!(
+                semantic,
+                Semantic::Positions
+                    | Semantic::Normals
+                    | Semantic::Tangents
+                    | Semantic::TexCoords(0 | 1)
+                    | Semantic::Colors(0)
+                    | Semantic::Joints(0)
+                    | Semantic::Weights(0)
+            ) || semantic == Semantic::Extras("REGION".to_string());
+            if !carried {
+                self.dropped.insert(match &semantic {
+                    Semantic::Extras(name) => format!("_{name}"),
+                    other => semantic_name(other).to_string(),
+                });
+            }
+        }
         let joints = match attribute(Semantic::Joints(0)) {
             Some((a, what)) => {
                 Some(data.read_uints::<4>(&a, &what, &[DataType::U8, DataType::U16])?)
@@ -189,6 +243,20 @@ impl Builder {
             });
         }
         let triangles = triangulate(mode, &indices)?;
+        // A normal map needs tangents: a primitive without them gets MikkTSpace's, as Bevy's
+        // glTF loader makes them, in its own space before the node's transform.
+        let tangents = match (tangents, &normals, &uvs) {
+            (None, Some(normals), Some(uvs)) if primitive.material().normal_texture().is_some() => {
+                let vec3s = |v: &[[f32; 3]]| v.iter().map(|&p| Vec3::from(p)).collect::<Vec<_>>();
+                let uvs: Vec<Vec2> = uvs.iter().map(|&t| Vec2::from(t)).collect();
+                let made = mikktspace(&vec3s(&positions), &vec3s(normals), &uvs, &triangles);
+                if made.is_none() {
+                    log::warn!("glTF: {at}: MikkTSpace could not make tangents");
+                }
+                made.map(|t| t.iter().map(Vec4::to_array).collect())
+            }
+            (tangents, ..) => tangents,
+        };
 
         let base = self.mesh.positions.len();
         if base + vertex_count > u32::MAX as usize {
@@ -220,6 +288,27 @@ impl Builder {
                     .map(|&n| (cofactor * Vec3::from(n)).normalize_or_zero()),
             ),
             None => self.normals.resize(base + vertex_count, Vec3::ZERO),
+        }
+        self.any_tangents |= tangents.is_some();
+        match &tangents {
+            // A tangent follows the surface like a position difference; a mirroring transform
+            // flips the bitangent's handedness.
+            Some(t) => self.tangents.extend(t.iter().map(|&[x, y, z, w]| {
+                let t = (linear * Vec3::new(x, y, z)).normalize_or_zero();
+                t.extend(if det < 0.0 { -w } else { w })
+            })),
+            None => self.tangents.resize(base + vertex_count, Vec4::ZERO),
+        }
+        self.any_uvs1 |= uvs1.is_some();
+        match &uvs1 {
+            Some(t) => self.uvs1.extend_from_slice(t),
+            None => self.uvs1.resize(base + vertex_count, [0.0; 2]),
+        }
+        self.any_colors |= colors.is_some();
+        match &colors {
+            Some(c) => self.colors.extend_from_slice(c),
+            // Primitives without colours draw as white, as Bevy draws a mesh without them.
+            None => self.colors.resize(base + vertex_count, [1.0; 4]),
         }
         self.any_uvs |= uvs.is_some();
         match &uvs {
@@ -300,6 +389,31 @@ impl Builder {
         }
         mesh.normals = (self.any_normals && self.all_normals).then_some(self.normals);
         mesh.uvs = self.any_uvs.then_some(self.uvs);
+        // Primitives without tangents (none given, no normal map) keep zero ones, which no
+        // material of theirs reads.
+        mesh.tangents = self.any_tangents.then_some(self.tangents);
+        if self.any_uvs1 {
+            mesh.attributes.push(VertexAttribute::from_f32(
+                "Vertex_Uv_1",
+                UV_1_ID,
+                &self.uvs1,
+            ));
+        }
+        if self.any_colors {
+            mesh.attributes.push(VertexAttribute::from_f32(
+                "Vertex_Color",
+                COLOR_ID,
+                &self.colors,
+            ));
+        }
+        if !self.dropped.is_empty() {
+            let names: Vec<&str> = self.dropped.iter().map(String::as_str).collect();
+            log::warn!(
+                "glTF: vertex attributes {} are not carried (this importer keeps POSITION, \
+                 NORMAL, TANGENT, TEXCOORD_0/1, COLOR_0, JOINTS_0, WEIGHTS_0 and _REGION)",
+                names.join(", ")
+            );
+        }
         let keep_joints = self.any_joints && !self.joints_unmappable;
         if self.joints_unmappable {
             log::warn!(

@@ -28,7 +28,7 @@ use super::tasks::par_chunks;
 use crate::bounds::Obb;
 use crate::mesh::IndexedMesh;
 use crate::regions::{Geomorphs, RegionCaches, RegionMesh};
-use crate::skin::{Influences, SkinRegionKind, blend};
+use crate::skin::{Influences, SkinRegionKind, blend, skin_normal};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::system::NonSendMarker;
 use bevy::mesh::VertexAttributeValues;
@@ -64,6 +64,9 @@ struct RegionSkin {
     normals: Vec<[f32; 3]>,
     /// Whether the source has normals (otherwise `normals` is not blended nor uploaded).
     has_normals: bool,
+    /// Deformed tangents, turned like the normals (`w`, the handedness, kept), when the
+    /// source has tangents; swapped with the mesh's as the positions are.
+    tangents: Vec<[f32; 4]>,
     /// `stamp[v] == generation` marks `v` as referenced.
     stamp: Vec<u32>,
     generation: u32,
@@ -133,6 +136,9 @@ impl SkinState {
                         |normals| normals.iter().map(|n| n.to_array()).collect(),
                     ),
                     has_normals: mesh.normals.is_some(),
+                    tangents: mesh.tangents.as_ref().map_or_else(Vec::new, |tangents| {
+                        tangents.iter().map(|t| t.to_array()).collect()
+                    }),
                     stamp: vec![0; n],
                     ..default()
                 }
@@ -277,6 +283,14 @@ pub(crate) fn initial_region_mesh(
                 *n = (normal_matrix * *n).normalize_or(*n);
             }
         }
+        // Tangents lie in the surface: they turn with the linear part itself.
+        let linear = Mat3::from_mat4(*ib);
+        if let Some(tangents) = &mut mesh.tangents {
+            for t in tangents {
+                let xyz = t.truncate();
+                *t = (linear * xyz).normalize_or(xyz).extend(t.w);
+            }
+        }
     }
     mesh
 }
@@ -341,10 +355,29 @@ impl Job<'_> {
             positions,
             Some(&mut *normals),
         );
+        if let Some(source) = &self.source.tangents {
+            // The blended matrix's upper 3x3 turns a tangent as it turns a normal (Bevy's
+            // vertex shader normalises both); a moving vertex keeps its own tangent.
+            let (joints, weights) = (&self.influences.joints, &self.influences.weights);
+            for &v in &r.written {
+                let v = v as usize;
+                let (Some(t), Some(out), Some(&j), Some(&w)) = (
+                    source.get(v),
+                    r.tangents.get_mut(v),
+                    joints.get(v),
+                    weights.get(v),
+                ) else {
+                    continue;
+                };
+                let xyz = skin_normal(self.matrices, t.truncate(), j, w, false);
+                *out = xyz.extend(t.w).to_array();
+            }
+        }
         if let Some(to_local) = self.to_local {
             // Normals stay unnormalised, as `blend` leaves them: Bevy's vertex shader
             // normalises every normal.
             let normal_matrix = Mat3::from(to_local.matrix3).inverse().transpose();
+            let linear = Mat3::from(to_local.matrix3);
             for &v in &r.written {
                 let v = v as usize;
                 if let Some(p) = positions.get_mut(v) {
@@ -354,6 +387,10 @@ impl Job<'_> {
                     && let Some(n) = normals.get_mut(v)
                 {
                     *n = normal_matrix * *n;
+                }
+                if let Some(t) = r.tangents.get_mut(v) {
+                    let xyz = linear * Vec3::new(t[0], t[1], t[2]);
+                    *t = [xyz.x, xyz.y, xyz.z, t[3]];
                 }
             }
         }
@@ -542,6 +579,13 @@ impl RegionSkin {
                     warn_once!("a skinned region mesh has the wrong vertex count; not updated");
                 }
             }
+        }
+        if !self.tangents.is_empty()
+            && let Ok(Some(VertexAttributeValues::Float32x4(slots))) =
+                mesh.try_attribute_mut_option(Mesh::ATTRIBUTE_TANGENT)
+            && slots.len() == self.tangents.len()
+        {
+            std::mem::swap(slots, &mut self.tangents);
         }
     }
 }
