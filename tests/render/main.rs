@@ -12,4 +12,5 @@ mod geomorph;
 mod level_changes;
 mod silvretta;
 mod skinned_character;
+mod textured;
 mod view_dependent;

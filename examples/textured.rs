@@ -1,0 +1,690 @@
+//! Real assets judged in pixels: a glTF scene with its own materials and textures, drawn
+//! offscreen (Vulkan; lavapipe without a GPU) from orbit views by plain Bevy (the reference),
+//! as a `MultiresScene` at `FullDetail`, as a `MultiresScene` at fractions of its triangles,
+//! and, at the same triangle counts per mesh, as meshoptimizer's `simplify_with_attributes`
+//! levels drawn as plain Bevy meshes.
+//!
+//! `textured [MODEL] [--views N] [--size PX] [--ratios 0.5,0.2,0.05] [--out DIR] [--no-peer]`
+//! writes `DIR/report.json` (per view: how the full-detail image differs from the reference,
+//! and per ratio the triangles, PSNR and mean absolute difference of ours and meshoptimizer's;
+//! medians and the worst view), the first view's PNGs, and `compare.png` (reference, ours,
+//! meshoptimizer at the smallest ratio), and prints a table. `MODEL` defaults to the shared
+//! test data's `textured/WaterBottle.glb`. The render test runs it with `--views 2 --ratios
+//! 0.05 --no-peer`.
+
+mod common;
+
+use bevy::app::ScheduleRunnerPlugin;
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::RenderTarget;
+use bevy::camera::primitives::Aabb;
+use bevy::gltf::Gltf;
+use bevy::mesh::{Indices, VertexAttributeValues};
+use bevy::platform::time::Instant;
+use bevy::prelude::*;
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::time::TimeUpdateStrategy;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::bevy_mesh::from_bevy_mesh;
+use bevy_aslod::plugin::{
+    AslodPlugin, FullDetail, MultiresInstance, MultiresScene, MultiresSceneModels,
+    MultiresSourceMesh, PolygonBudget,
+};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+const WATER_BOTTLE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared/testdata/textured/WaterBottle.glb"
+);
+
+/// meshoptimizer's attribute weights: normals (3) and the first UV set (2), relative to the
+/// position error (its header: "the weights determine relative priority of attributes
+/// between each other and wrt position"; its demo weighs normals 0.5).
+const PEER_WEIGHTS: [f32; 5] = [0.5, 0.5, 0.5, 1.0, 1.0];
+
+/// Rendered images of a glTF scene: plain Bevy, ours and meshoptimizer's.
+#[derive(clap::Parser, Debug)]
+struct Args {
+    /// The glTF or GLB scene.
+    #[arg(default_value = WATER_BOTTLE)]
+    model: PathBuf,
+    /// Orbit views around the scene.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=64))]
+    views: u32,
+    /// Width and height of each view in pixels.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    size: u32,
+    /// Fractions of the scene's triangles to draw it at.
+    #[arg(long, value_delimiter = ',', default_values_t = [0.5, 0.2, 0.05])]
+    ratios: Vec<f64>,
+    /// Where the report and the images go.
+    #[arg(long, default_value = "out/textured")]
+    out: PathBuf,
+    /// Leave meshoptimizer's levels out.
+    #[arg(long)]
+    no_peer: bool,
+}
+
+fn main() {
+    let args = <Args as clap::Parser>::parse();
+    if let Err(e) = run(&args) {
+        eprintln!("textured: {e}");
+        std::process::exit(1);
+    }
+}
+
+/// The screenshots that arrived, by slot.
+#[derive(Resource, Clone, Default)]
+struct Captured(Arc<Mutex<Option<Image>>>);
+
+/// The scene twice at one place (the plain one and the `MultiresScene`, one of them hidden),
+/// a light, and a camera drawing into an image.
+struct Stage {
+    app: App,
+    plain: Entity,
+    ours: Entity,
+    camera: Entity,
+    target: Handle<Image>,
+    captured: Captured,
+}
+
+fn run(args: &Args) -> Result<(), String> {
+    if args.ratios.iter().any(|r| !(*r > 0.0 && *r <= 1.0)) {
+        return Err(format!("ratios must be in (0, 1]: {:?}", args.ratios));
+    }
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("create {}: {e}", args.out.display()))?;
+    let (root, file) = common::split_model_path(&args.model)?;
+    let mut stage = Stage::new(&root, &file, args.size)?;
+    let (center, radius) = stage.bounds()?;
+    let full = stage.full_triangles();
+    let mut views = Vec::new();
+    let mut pictures = Vec::new();
+    let mut coarse_attributes = Vec::new();
+    for k in 0..args.views {
+        let azimuth = std::f32::consts::TAU * k as f32 / args.views as f32 + 0.4;
+        let elevation = if k % 2 == 0 { 0.35 } else { -0.15 };
+        let eye = center
+            + radius
+                * 2.6
+                * Vec3::new(
+                    elevation.cos() * azimuth.sin(),
+                    elevation.sin(),
+                    elevation.cos() * azimuth.cos(),
+                );
+        stage
+            .app
+            .world_mut()
+            .entity_mut(stage.camera)
+            .insert(Transform::from_translation(eye).looking_at(center, Vec3::Y));
+        stage.show(true, false);
+        let reference = stage.capture_stable()?;
+        stage.show(false, true);
+        stage.set_full_detail(true);
+        let ours_full = stage.capture_stable()?;
+        let (max, fraction) = common::compare(&reference, &ours_full);
+        let (psnr, mad) = psnr_mad(&reference, &ours_full);
+        let mut rows = Vec::new();
+        let mut shots = vec![
+            ("reference".to_string(), reference.clone()),
+            ("ours_full".to_string(), ours_full),
+        ];
+        for &ratio in &args.ratios {
+            stage.set_full_detail(false);
+            let budget = ((full as f64 * ratio).round() as u32).max(1);
+            stage.app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+            let ours = stage.capture_stable()?;
+            let counts = stage.model_triangles();
+            if k == 0 {
+                coarse_attributes.push(json!({
+                    "ratio": ratio,
+                    "problems": stage.attribute_problems(),
+                }));
+            }
+            let drawn: usize = counts.iter().map(|(_, c)| c).sum();
+            let (ours_psnr, ours_mad) = psnr_mad(&reference, &ours);
+            let mut row = json!({
+                "ratio": ratio,
+                "budget": budget,
+                "triangles": drawn,
+                "ours": { "psnr": ours_psnr, "mad": ours_mad },
+            });
+            shots.push((format!("ours_{ratio}"), ours));
+            if !args.no_peer {
+                let peers = stage.spawn_peer(&counts)?;
+                stage.show(false, false);
+                let peer = stage.capture_stable()?;
+                stage.despawn(&peers.0);
+                let (peer_psnr, peer_mad) = psnr_mad(&reference, &peer);
+                row["meshopt"] =
+                    json!({ "psnr": peer_psnr, "mad": peer_mad, "triangles": peers.1 });
+                shots.push((format!("meshopt_{ratio}"), peer));
+                stage.show(false, true);
+            }
+            rows.push(row);
+        }
+        if k == 0 {
+            for (name, image) in &shots {
+                common::save_image(image, &args.out.join(format!("view0_{name}.png")))?;
+            }
+            pictures = shots;
+        }
+        views.push(json!({
+            "view": k,
+            "varied": common::varied(&reference),
+            "full_detail": {
+                "fraction_over_2": fraction,
+                "max_channel_difference": max,
+                "psnr": psnr,
+                "mad": mad,
+            },
+            "ratios": rows,
+        }));
+    }
+    let smallest = args.ratios.iter().copied().fold(f64::INFINITY, f64::min);
+    let picked: Vec<&Image> = [
+        "reference".to_string(),
+        format!("ours_{smallest}"),
+        format!("meshopt_{smallest}"),
+    ]
+    .iter()
+    .filter_map(|name| pictures.iter().find(|(n, _)| n == name).map(|(_, i)| i))
+    .collect();
+    common::save_image(&side_by_side(&picked), &args.out.join("compare.png"))?;
+    let report = json!({
+        "model": args.model.display().to_string(),
+        "size": args.size,
+        "full_triangles": full,
+        "peer_weights": PEER_WEIGHTS,
+        "views": views,
+        "summary": summary(&views, &args.ratios),
+        "coarse_attributes": coarse_attributes,
+    });
+    std::fs::write(
+        args.out.join("report.json"),
+        serde_json::to_string_pretty(&report).expect("json"),
+    )
+    .map_err(|e| format!("write report.json: {e}"))?;
+    print_table(&report);
+    Ok(())
+}
+
+impl Stage {
+    /// Loads the scene twice, waits until both are loaded with their textures and the
+    /// `MultiresScene` is converted.
+    fn new(root: &Path, file: &str, size: u32) -> Result<Self, String> {
+        let mut app = App::new();
+        let plugins = DefaultPlugins
+            .set(AssetPlugin {
+                file_path: root.to_string_lossy().into_owned(),
+                ..default()
+            })
+            .set(WindowPlugin {
+                primary_window: None,
+                exit_condition: ExitCondition::DontExit,
+                ..default()
+            })
+            .disable::<WinitPlugin>()
+            .disable::<PipelinedRenderingPlugin>();
+        app.add_plugins((plugins, ScheduleRunnerPlugin::run_once()))
+            .add_plugins(AslodPlugin::default())
+            .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
+                1.0 / 60.0,
+            )))
+            .insert_resource(ClearColor(Color::srgb(0.1, 0.1, 0.12)));
+        app.finish();
+        app.cleanup();
+        let captured = Captured::default();
+        app.insert_resource(captured.clone());
+        let world = app.world_mut();
+        let server = world.resource::<AssetServer>().clone();
+        let gltf: Handle<Gltf> = server.load(file.to_owned());
+        let scene = server.load(GltfAssetLabel::Scene(0).from_asset(file.to_owned()));
+        let plain = world
+            .spawn((WorldAssetRoot(scene.clone()), Transform::default()))
+            .id();
+        let ours = world
+            .spawn((
+                WorldAssetRoot(scene),
+                MultiresScene::default(),
+                Transform::default(),
+                Visibility::Hidden,
+            ))
+            .id();
+        world.spawn((
+            DirectionalLight {
+                illuminance: 6_000.0,
+                shadow_maps_enabled: false,
+                ..default()
+            },
+            Transform::from_xyz(3.0, 6.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y),
+        ));
+        let target =
+            common::offscreen_image(&mut world.resource_mut::<Assets<Image>>(), (size, size));
+        let camera = world
+            .spawn((
+                Camera3d::default(),
+                RenderTarget::Image(target.clone().into()),
+                Msaa::Off,
+                Transform::from_xyz(0.0, 0.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+            ))
+            .id();
+        let start = Instant::now();
+        loop {
+            app.update();
+            let world = app.world();
+            let loaded = world
+                .resource::<AssetServer>()
+                .is_loaded_with_dependencies(&gltf);
+            if loaded && world.get::<MultiresSceneModels>(ours).is_some() {
+                break;
+            }
+            if start.elapsed() > Duration::from_secs(300) {
+                return Err(format!(
+                    "{file} did not load and convert within five minutes (loaded: {loaded})"
+                ));
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        Ok(Self {
+            app,
+            plain,
+            ours,
+            camera,
+            target,
+            captured,
+        })
+    }
+
+    /// Which scene is drawn.
+    fn show(&mut self, plain: bool, ours: bool) {
+        let visibility = |on: bool| {
+            if on {
+                Visibility::Inherited
+            } else {
+                Visibility::Hidden
+            }
+        };
+        let world = self.app.world_mut();
+        world.entity_mut(self.plain).insert(visibility(plain));
+        world.entity_mut(self.ours).insert(visibility(ours));
+    }
+
+    fn set_full_detail(&mut self, on: bool) {
+        self.app.world_mut().insert_resource(FullDetail(on));
+    }
+
+    /// The converted scene's models.
+    fn models(&self) -> Vec<Entity> {
+        self.app
+            .world()
+            .get::<MultiresSceneModels>(self.ours)
+            .map_or_else(Vec::new, |m| m.models().collect())
+    }
+
+    /// Every model's triangles at full detail, summed.
+    fn full_triangles(&self) -> usize {
+        self.models()
+            .iter()
+            .filter_map(|&m| self.app.world().get::<MultiresInstance>(m))
+            .map(|i| {
+                i.regions()
+                    .regions()
+                    .iter()
+                    .map(|r| r.max_triangles())
+                    .sum::<usize>()
+            })
+            .sum()
+    }
+
+    /// The triangles each model shows now.
+    fn model_triangles(&self) -> Vec<(Entity, usize)> {
+        self.models()
+            .into_iter()
+            .filter_map(|m| {
+                let i = self.app.world().get::<MultiresInstance>(m)?;
+                Some((m, i.triangle_count()))
+            })
+            .collect()
+    }
+
+    /// The centre and radius of the plain scene's meshes' boxes.
+    fn bounds(&mut self) -> Result<(Vec3, f32), String> {
+        // Boxes are computed in the frames after the meshes arrive.
+        for _ in 0..5 {
+            self.app.update();
+        }
+        let world = self.app.world_mut();
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        let mut boxes = world.query::<(&Aabb, &GlobalTransform)>();
+        for (aabb, transform) in boxes.iter(world) {
+            let (min, max) = (Vec3::from(aabb.min()), Vec3::from(aabb.max()));
+            for i in 0..8 {
+                let corner = Vec3::new(
+                    if i & 1 == 0 { min.x } else { max.x },
+                    if i & 2 == 0 { min.y } else { max.y },
+                    if i & 4 == 0 { min.z } else { max.z },
+                );
+                let p = transform.transform_point(corner);
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+        if !lo.is_finite() || !hi.is_finite() {
+            return Err("the scene has no mesh with a bounding box".into());
+        }
+        Ok(((lo + hi) / 2.0, ((hi - lo).length() / 2.0).max(1e-3)))
+    }
+
+    /// A screenshot of the camera's image, taken once two in a row agree (pipelines compile
+    /// and levels land over several frames).
+    fn capture_stable(&mut self) -> Result<Image, String> {
+        let mut last: Option<Image> = None;
+        for _ in 0..100 {
+            for _ in 0..3 {
+                self.app.update();
+            }
+            let shot = self.capture()?;
+            if let Some(last) = &last
+                && common::varied(&shot) > 0.005
+                && common::compare(last, &shot).0 == 0
+            {
+                return Ok(shot);
+            }
+            last = Some(shot);
+        }
+        Err("the view never settled: each screenshot differs from the one before".into())
+    }
+
+    fn capture(&mut self) -> Result<Image, String> {
+        *self.captured.0.lock().expect("capture slot") = None;
+        self.app
+            .world_mut()
+            .spawn(Screenshot::image(self.target.clone()))
+            .observe(|captured: On<ScreenshotCaptured>, slot: Res<Captured>| {
+                *slot.0.lock().expect("capture slot") = Some(captured.image.clone());
+            });
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(120) {
+            self.app.update();
+            if let Some(image) = self.captured.0.lock().expect("capture slot").take() {
+                return Ok(image);
+            }
+        }
+        Err("a screenshot did not arrive within two minutes".into())
+    }
+
+    /// meshoptimizer's level of each model's source mesh at the triangles the model shows,
+    /// spawned as plain meshes with the model's material where the model is. Returns the
+    /// entities and the triangles they draw.
+    fn spawn_peer(&mut self, counts: &[(Entity, usize)]) -> Result<(Vec<Entity>, usize), String> {
+        let world = self.app.world_mut();
+        let mut spawned = Vec::new();
+        let mut triangles = 0;
+        for &(model, count) in counts {
+            let entity = world.entity(model);
+            let (Some(source), Some(material), Some(transform)) = (
+                entity.get::<MultiresSourceMesh>(),
+                entity.get::<MeshMaterial3d<StandardMaterial>>(),
+                entity.get::<GlobalTransform>(),
+            ) else {
+                return Err("a model lacks its source mesh, material or transform".into());
+            };
+            let (source, material, transform) = (
+                source.0.clone(),
+                material.clone(),
+                transform.compute_transform(),
+            );
+            let mesh = world
+                .resource::<Assets<Mesh>>()
+                .get(&source)
+                .ok_or("a source mesh is gone")?
+                .clone();
+            let indices = meshopt_level(&mesh, count)?;
+            triangles += indices.len() / 3;
+            let mut level = mesh;
+            level.insert_indices(Indices::U32(indices));
+            let level = world.resource_mut::<Assets<Mesh>>().add(level);
+            spawned.push(world.spawn((Mesh3d(level), material, transform)).id());
+        }
+        Ok((spawned, triangles))
+    }
+
+    fn despawn(&mut self, entities: &[Entity]) {
+        for &e in entities {
+            self.app.world_mut().entity_mut(e).despawn();
+        }
+    }
+
+    /// What is wrong with the attributes the models draw now, against their source meshes:
+    /// an attribute the source has and a region mesh lacks (joints and weights aside: the
+    /// plugin skins on the CPU), or a float that is NaN or infinite.
+    fn attribute_problems(&self) -> Vec<String> {
+        let world = self.app.world();
+        let meshes = world.resource::<Assets<Mesh>>();
+        let mut problems = Vec::new();
+        for model in self.models() {
+            let source = world
+                .get::<MultiresSourceMesh>(model)
+                .and_then(|s| meshes.get(&s.0));
+            let Some(instance) = world.get::<MultiresInstance>(model) else {
+                continue;
+            };
+            for &region in instance.region_entities() {
+                let Some(mesh) = world.get::<Mesh3d>(region).and_then(|m| meshes.get(&m.0)) else {
+                    problems.push(format!("{region}: no mesh"));
+                    continue;
+                };
+                if let Some(source) = source {
+                    for (attribute, _) in source.attributes() {
+                        let skin = [
+                            Mesh::ATTRIBUTE_JOINT_INDEX.id,
+                            Mesh::ATTRIBUTE_JOINT_WEIGHT.id,
+                        ];
+                        if !skin.contains(&attribute.id) && !mesh.contains_attribute(attribute.id) {
+                            problems.push(format!("{region}: {} missing", attribute.name));
+                        }
+                    }
+                }
+                for (attribute, values) in mesh.attributes() {
+                    if !finite(values) {
+                        problems.push(format!(
+                            "{region}: {} has NaN or infinite values",
+                            attribute.name
+                        ));
+                    }
+                }
+            }
+        }
+        problems
+    }
+}
+
+/// Whether every float of an attribute is finite.
+fn finite(values: &VertexAttributeValues) -> bool {
+    match values {
+        VertexAttributeValues::Float32(v) => v.iter().all(|x| x.is_finite()),
+        VertexAttributeValues::Float32x2(v) => v.iter().flatten().all(|x| x.is_finite()),
+        VertexAttributeValues::Float32x3(v) => v.iter().flatten().all(|x| x.is_finite()),
+        VertexAttributeValues::Float32x4(v) => v.iter().flatten().all(|x| x.is_finite()),
+        _ => true,
+    }
+}
+
+/// meshoptimizer's `simplify_with_attributes` level of `mesh` with `triangles` triangles
+/// (normals and the first UV set weighted by [`PEER_WEIGHTS`]), as the index buffer a Bevy
+/// user would draw.
+fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
+    let indexed = from_bevy_mesh(mesh).map_err(|e| e.to_string())?;
+    let n = indexed.positions.len();
+    let normals = indexed
+        .normals
+        .clone()
+        .unwrap_or_else(|| vec![Vec3::ZERO; n]);
+    let uvs = indexed.uvs.clone().unwrap_or_else(|| vec![Vec2::ZERO; n]);
+    let attributes: Vec<f32> = (0..n)
+        .flat_map(|v| [normals[v].x, normals[v].y, normals[v].z, uvs[v].x, uvs[v].y])
+        .collect();
+    let positions: Vec<u8> = indexed
+        .positions
+        .iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let adapter = meshopt::VertexDataAdapter::new(&positions, 12, 0).map_err(|e| e.to_string())?;
+    Ok(meshopt::simplify_with_attributes_and_locks(
+        &indexed.indices,
+        &adapter,
+        &attributes,
+        &PEER_WEIGHTS,
+        5 * std::mem::size_of::<f32>(),
+        &vec![false; n],
+        3 * triangles,
+        f32::MAX,
+        meshopt::SimplifyOptions::None,
+        None,
+    ))
+}
+
+/// PSNR (dB, over RGB) and mean absolute difference (per channel, of 255) between two
+/// images of one size.
+fn psnr_mad(a: &Image, b: &Image) -> (f64, f64) {
+    let (Some(a), Some(b)) = (&a.data, &b.data) else {
+        return (0.0, 255.0);
+    };
+    let (mut squared, mut absolute, mut count) = (0.0f64, 0.0f64, 0usize);
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        for c in 0..3 {
+            let d = f64::from(pa[c]) - f64::from(pb[c]);
+            squared += d * d;
+            absolute += d.abs();
+            count += 1;
+        }
+    }
+    let mse = squared / count.max(1) as f64;
+    let psnr = if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0 * 255.0 / mse).log10()
+    };
+    (psnr, absolute / count.max(1) as f64)
+}
+
+/// Images of one size side by side, left to right.
+fn side_by_side(images: &[&Image]) -> Image {
+    let (w, h) = images.first().map_or((1, 1), |i| (i.width(), i.height()));
+    let mut data = vec![0u8; (w * h * 4) as usize * images.len().max(1)];
+    let row = (w * 4) as usize;
+    for (k, image) in images.iter().enumerate() {
+        let Some(pixels) = &image.data else { continue };
+        for y in 0..h as usize {
+            let to = y * row * images.len() + k * row;
+            data[to..to + row].copy_from_slice(&pixels[y * row..(y + 1) * row]);
+        }
+    }
+    Image::new(
+        Extent3d {
+            width: w * images.len().max(1) as u32,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        data,
+        TextureFormat::Rgba8UnormSrgb,
+        RenderAssetUsages::default(),
+    )
+}
+
+/// Per ratio: the median and the worst view's PSNR and MAD of ours and meshoptimizer's.
+fn summary(views: &[serde_json::Value], ratios: &[f64]) -> serde_json::Value {
+    let column = |path: &[&str]| -> Vec<f64> {
+        views
+            .iter()
+            .filter_map(|v| {
+                let mut x = v;
+                for p in path {
+                    x = x.get(p)?;
+                }
+                x.as_f64()
+            })
+            .collect()
+    };
+    let worst_fraction = column(&["full_detail", "fraction_over_2"])
+        .into_iter()
+        .fold(0.0, f64::max);
+    let rows: Vec<serde_json::Value> = ratios
+        .iter()
+        .enumerate()
+        .map(|(i, ratio)| {
+            let pick = |who: &str, what: &str| -> Vec<f64> {
+                views
+                    .iter()
+                    .filter_map(|v| v["ratios"][i][who][what].as_f64())
+                    .collect()
+            };
+            let stats = |who: &str| {
+                let (psnr, mad) = (pick(who, "psnr"), pick(who, "mad"));
+                if psnr.is_empty() {
+                    return serde_json::Value::Null;
+                }
+                json!({
+                    "median_psnr": common::stats::median(&psnr),
+                    "worst_psnr": psnr.iter().copied().fold(f64::INFINITY, f64::min),
+                    "median_mad": common::stats::median(&mad),
+                    "worst_mad": mad.iter().copied().fold(0.0, f64::max),
+                })
+            };
+            json!({ "ratio": ratio, "ours": stats("ours"), "meshopt": stats("meshopt") })
+        })
+        .collect();
+    json!({
+        "full_detail_worst_fraction_over_2": worst_fraction,
+        "full_detail_median_psnr": common::stats::median(&column(&["full_detail", "psnr"])),
+        "ratios": rows,
+    })
+}
+
+fn print_table(report: &serde_json::Value) {
+    let s = &report["summary"];
+    println!(
+        "{}: {} triangles; full detail: worst view {:.4}% of pixels over 2/255, median PSNR {:.1} dB",
+        report["model"].as_str().unwrap_or(""),
+        report["full_triangles"],
+        100.0
+            * s["full_detail_worst_fraction_over_2"]
+                .as_f64()
+                .unwrap_or(f64::NAN),
+        s["full_detail_median_psnr"].as_f64().unwrap_or(f64::NAN),
+    );
+    println!(
+        "| ratio | ours PSNR median / worst | meshopt PSNR median / worst | ours MAD median | meshopt MAD median |"
+    );
+    println!("|---:|---:|---:|---:|---:|");
+    for row in s["ratios"].as_array().into_iter().flatten() {
+        let f = |who: &str, what: &str| row[who][what].as_f64().unwrap_or(f64::NAN);
+        println!(
+            "| {} | {:.2} / {:.2} | {:.2} / {:.2} | {:.3} | {:.3} |",
+            row["ratio"],
+            f("ours", "median_psnr"),
+            f("ours", "worst_psnr"),
+            f("meshopt", "median_psnr"),
+            f("meshopt", "worst_psnr"),
+            f("ours", "median_mad"),
+            f("meshopt", "median_mad"),
+        );
+    }
+    if let Some(problems) = report["coarse_attributes"].as_array() {
+        for p in problems {
+            let list = p["problems"].as_array().map_or(0, Vec::len);
+            println!("attributes at ratio {}: {list} problems", p["ratio"]);
+        }
+    }
+}
