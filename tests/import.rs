@@ -1009,3 +1009,47 @@ fn obj_writes_vertex_colours() {
     let back = parse_obj(&text).unwrap();
     assert_eq!(back.positions, mesh.positions);
 }
+
+/// TEXCOORD_1 and COLOR_0 (RGB, read as RGBA with alpha 1) are carried; TEXCOORD_2, COLOR_1
+/// and a custom attribute are not, and the import names them.
+#[test]
+fn attributes_the_importer_cannot_carry_are_named() {
+    use bevy_aslod::mesh::{COLOR_ID, UV_1_ID};
+    let positions = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let mut bin: Vec<u8> = positions.iter().flat_map(|c| c.to_le_bytes()).collect();
+    // Three VEC2 sets and three VEC3 sets of 3 vertices.
+    let vec2s = [0.25f32, 0.5, 0.75, 1.0, 0.0, 0.125];
+    let vec3s = [1.0f32, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    bin.extend(vec2s.iter().flat_map(|c| c.to_le_bytes()));
+    bin.extend(vec3s.iter().flat_map(|c| c.to_le_bytes()));
+    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],
+        "nodes":[{"mesh":0}],
+        "meshes":[{"primitives":[{"attributes":{"POSITION":0,"TEXCOORD_1":1,"TEXCOORD_2":1,
+            "COLOR_0":2,"COLOR_1":2,"_WIND":2}}]}],
+        "accessors":[
+          {"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]},
+          {"bufferView":1,"componentType":5126,"count":3,"type":"VEC2"},
+          {"bufferView":2,"componentType":5126,"count":3,"type":"VEC3"}],
+        "bufferViews":[{"buffer":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":24},
+          {"buffer":0,"byteOffset":60,"byteLength":36}],
+        "buffers":[{"byteLength":96}]}"#;
+    let import = load_gltf_slice(&glb(json, &bin), None).unwrap();
+    assert_eq!(
+        import.dropped_attributes,
+        ["COLOR_1", "TEXCOORD_2", "_WIND"]
+    );
+    let mesh = &import.mesh;
+    let uv1 = mesh
+        .attribute(UV_1_ID)
+        .expect("TEXCOORD_1")
+        .to_f32::<2>()
+        .unwrap();
+    assert_eq!(uv1, [[0.25, 0.5], [0.75, 1.0], [0.0, 0.125]]);
+    let colors = mesh
+        .attribute(COLOR_ID)
+        .expect("COLOR_0")
+        .to_f32::<4>()
+        .unwrap();
+    assert_eq!(colors[1], [0.0, 1.0, 0.0, 1.0]);
+    assert!(mesh.tangents.is_none(), "no normal map, no tangents");
+}

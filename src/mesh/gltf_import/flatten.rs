@@ -25,10 +25,17 @@ pub struct GltfImport {
     /// joint list of the lowest-numbered skin that a node uses ([`skins`](Self::skins)); other
     /// skins are remapped to it through their joint nodes.
     ///
-    /// Normals are kept only when every primitive has them. Texture coordinates, joints and
-    /// weights are kept when any primitive has them, and are zero for the vertices of
-    /// primitives without.
+    /// Normals are kept only when every primitive has them. Texture coordinates, tangents,
+    /// joints and weights are kept when any primitive has them, and are zero for the vertices
+    /// of primitives without; `TEXCOORD_1` and `COLOR_0` become further attributes
+    /// ([`UV_1_ID`](crate::mesh::UV_1_ID), [`COLOR_ID`](crate::mesh::COLOR_ID); colours are
+    /// white where a primitive has none). A primitive whose material has a normal map and
+    /// which has no `TANGENT` gets MikkTSpace tangents, as Bevy's glTF loader makes them.
     pub mesh: IndexedMesh,
+    /// Vertex attributes of some primitive that the mesh does not carry (`TEXCOORD_2` and
+    /// up, `COLOR_1` and up, `JOINTS_1`/`WEIGHTS_1`, custom `_NAME`s other than `_REGION`),
+    /// by glTF name, sorted; each import that drops one also logs a warning naming them.
+    pub dropped_attributes: Vec<String>,
     /// Number of triangle primitives flattened into the mesh (each instance counts).
     pub primitives: usize,
     /// How many of those primitives have morph targets. Only their base shape is imported.
@@ -425,6 +432,7 @@ impl Builder {
         mesh.weights = (keep_joints && self.any_weights).then_some(self.weights);
         GltfImport {
             mesh,
+            dropped_attributes: self.dropped.into_iter().collect(),
             primitives: self.primitives,
             morph_target_primitives: self.morph_target_primitives,
             skins,
