@@ -254,7 +254,7 @@ mod tests {
     fn every_attribute_format_round_trips() {
         use bevy::mesh::VertexAttributeValues as V;
         let n = 4;
-        let f = |k: usize| (0..n).map(|i| (i * 10 + k) as f32 * 0.5);
+        let f = |k: usize| (0..n).map(move |i| (i * 10 + k) as f32 * 0.5);
         let custom: Vec<V> = vec![
             V::Float32(f(0).collect()),
             V::Float32x3(f(1).map(|x| [x, -x, 1.0]).collect()),

@@ -31,6 +31,11 @@ fn source() -> IndexedMesh {
     let mut mesh = common::sphere(24, 32, &noise, true);
     mesh.normals = Some(mesh.positions.iter().map(|p| p.normalize()).collect());
     common::add_further_attributes(&mut mesh);
+    // Tangents in the surface, as MikkTSpace makes them, handedness kept.
+    let normals = mesh.normals.clone().unwrap();
+    for (t, n) in mesh.tangents.as_mut().unwrap().iter_mut().zip(&normals) {
+        *t = n.cross(Vec3::Y).normalize_or(Vec3::X).extend(t.w);
+    }
     let n = mesh.positions.len() as u32;
     mesh.attributes.push(VertexAttribute {
         name: SOURCE_ID.into(),
@@ -77,16 +82,18 @@ fn check_drawn(mesh: &Mesh, source: &IndexedMesh, deformed: bool, what: &str) ->
         );
         assert_eq!(t.w, t0.w, "{what}: the handedness of vertex {g}");
         if deformed {
+            // Blended vertices keep unnormalised normals and tangents, as Bevy's vertex shader
+            // normalises both.
             let n = drawn.normals.as_ref().unwrap()[v].normalize();
+            let t = t.truncate().normalize();
+            assert!(t.is_finite(), "{what}: vertex {g}'s tangent {t}");
+            // Normals and tangents both turn with the blended matrix's linear part (not the
+            // inverse transpose for normals): perpendicular up to the blend's shear, a few
+            // hundredths at this turn. Left unturned, a blended tangent is 0.08 off here.
             assert!(
-                (t.truncate().length() - 1.0).abs() < 1e-3,
-                "{what}: tangent {t}"
-            );
-            let s = source.normals.as_ref().unwrap()[g].dot(t0.truncate());
-            assert!(
-                (n.dot(t.truncate()) - s).abs() < 2e-2,
-                "{what}: vertex {g}'s tangent left its surface ({} vs {s})",
-                n.dot(t.truncate())
+                n.dot(t).abs() < 0.05,
+                "{what}: vertex {g}'s tangent left its surface (n·t = {})",
+                n.dot(t)
             );
         } else {
             assert_eq!(
