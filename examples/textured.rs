@@ -2,7 +2,7 @@
 //! offscreen (Vulkan; lavapipe without a GPU) from orbit views by plain Bevy (the reference),
 //! as a `MultiresScene` at `FullDetail`, as a `MultiresScene` at fractions of its triangles,
 //! and, at the same triangle counts per mesh, as meshoptimizer's `simplify_with_attributes`
-//! levels drawn as plain Bevy meshes.
+//! levels drawn by plain Bevy (the plain scene with its meshes swapped for them).
 //!
 //! `textured [MODEL] [--views N] [--size PX] [--ratios 0.5,0.2,0.05] [--out DIR] [--no-peer]`
 //! writes `DIR/report.json` (per view: how the full-detail image differs from the reference,
@@ -48,6 +48,9 @@ const WATER_BOTTLE: &str = concat!(
 /// position error (its header: "the weights determine relative priority of attributes
 /// between each other and wrt position"; its demo weighs normals 0.5).
 const PEER_WEIGHTS: [f32; 5] = [0.5, 0.5, 0.5, 1.0, 1.0];
+
+/// The PSNR reported for identical images (JSON has no infinity).
+const IDENTICAL_PSNR: f64 = 100.0;
 
 /// Rendered images of a glTF scene: plain Bevy, ours and meshoptimizer's.
 #[derive(clap::Parser, Debug)]
@@ -110,10 +113,10 @@ fn run(args: &Args) -> Result<(), String> {
     let mut coarse_attributes = Vec::new();
     for k in 0..args.views {
         let azimuth = std::f32::consts::TAU * k as f32 / args.views as f32 + 0.4;
-        let elevation = if k % 2 == 0 { 0.35 } else { -0.15 };
+        let elevation: f32 = if k % 2 == 0 { 0.35 } else { -0.15 };
         let eye = center
             + radius
-                * 2.6
+                * 2.4
                 * Vec3::new(
                     elevation.cos() * azimuth.sin(),
                     elevation.sin(),
@@ -141,14 +144,14 @@ fn run(args: &Args) -> Result<(), String> {
             let budget = ((full as f64 * ratio).round() as u32).max(1);
             stage.app.world_mut().resource_mut::<PolygonBudget>().total = budget;
             let ours = stage.capture_stable()?;
-            let counts = stage.model_triangles();
+            let counts = stage.source_triangles();
             if k == 0 {
                 coarse_attributes.push(json!({
                     "ratio": ratio,
                     "problems": stage.attribute_problems(),
                 }));
             }
-            let drawn: usize = counts.iter().map(|(_, c)| c).sum();
+            let drawn: usize = stage.model_triangles();
             let (ours_psnr, ours_mad) = psnr_mad(&reference, &ours);
             let mut row = json!({
                 "ratio": ratio,
@@ -158,13 +161,13 @@ fn run(args: &Args) -> Result<(), String> {
             });
             shots.push((format!("ours_{ratio}"), ours));
             if !args.no_peer {
-                let peers = stage.spawn_peer(&counts)?;
-                stage.show(false, false);
+                let (swapped, peer_triangles) = stage.swap_in_peer(&counts)?;
+                stage.show(true, false);
                 let peer = stage.capture_stable()?;
-                stage.despawn(&peers.0);
+                stage.restore(swapped);
                 let (peer_psnr, peer_mad) = psnr_mad(&reference, &peer);
                 row["meshopt"] =
-                    json!({ "psnr": peer_psnr, "mad": peer_mad, "triangles": peers.1 });
+                    json!({ "psnr": peer_psnr, "mad": peer_mad, "triangles": peer_triangles });
                 shots.push((format!("meshopt_{ratio}"), peer));
                 stage.show(false, true);
             }
@@ -344,15 +347,43 @@ impl Stage {
             .sum()
     }
 
-    /// The triangles each model shows now.
-    fn model_triangles(&self) -> Vec<(Entity, usize)> {
-        self.models()
+    /// The triangles each model shows now, by the source mesh it was made from (found on the
+    /// model, or on its parent for a skinned model); models of one source mesh are averaged.
+    fn source_triangles(&self) -> Vec<(Handle<Mesh>, usize)> {
+        let world = self.app.world();
+        let mut by_source: Vec<(Handle<Mesh>, usize, usize)> = Vec::new();
+        for model in self.models() {
+            let Some(instance) = world.get::<MultiresInstance>(model) else {
+                continue;
+            };
+            let holder = match world.get::<MultiresSourceMesh>(model) {
+                Some(_) => Some(model),
+                None => world.get::<ChildOf>(model).map(ChildOf::parent),
+            };
+            let Some(source) = holder.and_then(|h| world.get::<MultiresSourceMesh>(h)) else {
+                continue;
+            };
+            match by_source.iter_mut().find(|(h, ..)| *h == source.0) {
+                Some((_, sum, n)) => {
+                    *sum += instance.triangle_count();
+                    *n += 1;
+                }
+                None => by_source.push((source.0.clone(), instance.triangle_count(), 1)),
+            }
+        }
+        by_source
             .into_iter()
-            .filter_map(|m| {
-                let i = self.app.world().get::<MultiresInstance>(m)?;
-                Some((m, i.triangle_count()))
-            })
+            .map(|(h, sum, n)| (h, sum / n))
             .collect()
+    }
+
+    /// The triangles all models show now.
+    fn model_triangles(&self) -> usize {
+        self.models()
+            .iter()
+            .filter_map(|&m| self.app.world().get::<MultiresInstance>(m))
+            .map(MultiresInstance::triangle_count)
+            .sum()
     }
 
     /// The centre and radius of the plain scene's meshes' boxes.
@@ -422,45 +453,56 @@ impl Stage {
         Err("a screenshot did not arrive within two minutes".into())
     }
 
-    /// meshoptimizer's level of each model's source mesh at the triangles the model shows,
-    /// spawned as plain meshes with the model's material where the model is. Returns the
-    /// entities and the triangles they draw.
-    fn spawn_peer(&mut self, counts: &[(Entity, usize)]) -> Result<(Vec<Entity>, usize), String> {
+    /// Gives every mesh entity of the plain scene meshoptimizer's level of its mesh at the
+    /// triangles its model shows (`counts`, by source mesh), keeping its material, skin and
+    /// transform. Returns the entities with their own meshes, for [`restore`](Self::restore),
+    /// and the triangles the levels draw.
+    fn swap_in_peer(
+        &mut self,
+        counts: &[(Handle<Mesh>, usize)],
+    ) -> Result<(Vec<(Entity, Handle<Mesh>)>, usize), String> {
         let world = self.app.world_mut();
-        let mut spawned = Vec::new();
+        let mut levels = Vec::new();
         let mut triangles = 0;
-        for &(model, count) in counts {
-            let entity = world.entity(model);
-            let (Some(source), Some(material), Some(transform)) = (
-                entity.get::<MultiresSourceMesh>(),
-                entity.get::<MeshMaterial3d<StandardMaterial>>(),
-                entity.get::<GlobalTransform>(),
-            ) else {
-                return Err("a model lacks its source mesh, material or transform".into());
-            };
-            let (source, material, transform) = (
-                source.0.clone(),
-                material.clone(),
-                transform.compute_transform(),
-            );
+        for (source, count) in counts {
             let mesh = world
                 .resource::<Assets<Mesh>>()
-                .get(&source)
+                .get(source)
                 .ok_or("a source mesh is gone")?
                 .clone();
-            let indices = meshopt_level(&mesh, count)?;
-            triangles += indices.len() / 3;
+            let indices = meshopt_level(&mesh, *count)?;
             let mut level = mesh;
             level.insert_indices(Indices::U32(indices));
-            let level = world.resource_mut::<Assets<Mesh>>().add(level);
-            spawned.push(world.spawn((Mesh3d(level), material, transform)).id());
+            levels.push((source.clone(), level));
         }
-        Ok((spawned, triangles))
+        let mut entities = world.query::<(Entity, &Mesh3d)>();
+        let plain: Vec<(Entity, Handle<Mesh>)> = entities
+            .iter(world)
+            .filter(|(_, m)| counts.iter().any(|(h, _)| *h == m.0))
+            .map(|(e, m)| (e, m.0.clone()))
+            .collect();
+        let levels: Vec<(Handle<Mesh>, Handle<Mesh>, usize)> = levels
+            .into_iter()
+            .map(|(source, level)| {
+                let n = level.indices().map_or(0, |i| i.len() / 3);
+                (source, world.resource_mut::<Assets<Mesh>>().add(level), n)
+            })
+            .collect();
+        for (entity, mesh) in &plain {
+            let (_, level, n) = levels
+                .iter()
+                .find(|(source, ..)| source == mesh)
+                .expect("every swapped mesh has a level");
+            triangles += n;
+            world.entity_mut(*entity).insert(Mesh3d(level.clone()));
+        }
+        Ok((plain, triangles))
     }
 
-    fn despawn(&mut self, entities: &[Entity]) {
-        for &e in entities {
-            self.app.world_mut().entity_mut(e).despawn();
+    /// Gives the entities their own meshes back.
+    fn restore(&mut self, swapped: Vec<(Entity, Handle<Mesh>)>) {
+        for (entity, mesh) in swapped {
+            self.app.world_mut().entity_mut(entity).insert(Mesh3d(mesh));
         }
     }
 
@@ -554,14 +596,20 @@ fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
     ))
 }
 
-/// PSNR (dB, over RGB) and mean absolute difference (per channel, of 255) between two
-/// images of one size.
+/// PSNR (dB, over RGB; [`IDENTICAL_PSNR`] for identical images) and mean absolute difference
+/// (per channel, of 255) between two images of one size, over the pixels where either shows
+/// the scene (not the clear colour, which is the first pixel's: the views keep the scene off
+/// the corners), so the background does not dilute them.
 fn psnr_mad(a: &Image, b: &Image) -> (f64, f64) {
     let (Some(a), Some(b)) = (&a.data, &b.data) else {
         return (0.0, 255.0);
     };
+    let clear = &a[..4];
     let (mut squared, mut absolute, mut count) = (0.0f64, 0.0f64, 0usize);
     for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        if pa == clear && pb == clear {
+            continue;
+        }
         for c in 0..3 {
             let d = f64::from(pa[c]) - f64::from(pb[c]);
             squared += d * d;
@@ -571,9 +619,9 @@ fn psnr_mad(a: &Image, b: &Image) -> (f64, f64) {
     }
     let mse = squared / count.max(1) as f64;
     let psnr = if mse == 0.0 {
-        f64::INFINITY
+        IDENTICAL_PSNR
     } else {
-        10.0 * (255.0 * 255.0 / mse).log10()
+        (10.0 * (255.0 * 255.0 / mse).log10()).min(IDENTICAL_PSNR)
     };
     (psnr, absolute / count.max(1) as f64)
 }
