@@ -471,3 +471,68 @@ fn topology_compromise_goes_where_edge_collapses_cannot() {
     );
     assert!(same.1 <= coarsest.1 * 1.5, "{same:?} against {coarsest:?}");
 }
+
+/// The largest error, over the source vertices, between a vertex's UV and the UV the level's
+/// triangles interpolate at its place (a flat grid in XZ: each vertex lies in some triangle).
+fn worst_uv_error(mesh: &IndexedMesh, level: &[u32]) -> f32 {
+    let uvs = mesh.uvs.as_ref().expect("UVs");
+    let p = |v: u32| {
+        let q = mesh.positions[v as usize];
+        glam::Vec2::new(q.x, q.z)
+    };
+    let mut worst: f32 = 0.0;
+    for (v, q) in mesh.positions.iter().enumerate() {
+        let q = glam::Vec2::new(q.x, q.z);
+        let mut found = None;
+        for t in level.chunks_exact(3) {
+            let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+            let d = (b - a).perp_dot(c - a);
+            if d.abs() < 1e-12 {
+                continue;
+            }
+            let beta = (q - a).perp_dot(c - a) / d;
+            let gamma = (b - a).perp_dot(q - a) / d;
+            let alpha = 1.0 - beta - gamma;
+            if alpha >= -1e-4 && beta >= -1e-4 && gamma >= -1e-4 {
+                let uv = uvs[t[0] as usize] * alpha
+                    + uvs[t[1] as usize] * beta
+                    + uvs[t[2] as usize] * gamma;
+                found = Some((uv - uvs[v]).length());
+                break;
+            }
+        }
+        worst = worst.max(found.expect("every vertex lies in a triangle of a flat level"));
+    }
+    worst
+}
+
+/// The UV term of the collapse cost: on a flat grid (every collapse free geometrically) whose
+/// UVs fold along a line (u = |x - 10|, continuous, no seam), levels built with a UV weight
+/// keep the fold, so their UVs stay close to the source's; without it the fold goes.
+#[test]
+fn a_uv_weight_keeps_a_fold_in_the_uvs() {
+    let mut mesh = grid(21, 21, &[0.0]);
+    mesh.uvs = Some(
+        mesh.positions
+            .iter()
+            .map(|p| glam::Vec2::new((p.x - 10.0).abs() / 10.0, p.z / 20.0))
+            .collect(),
+    );
+    let error_at = |options: &BuildOptions, triangles: usize| {
+        let pm = ProgressiveMesh::build(&mesh, options).expect("builds");
+        let mut cache = PolygonCache::new(&pm);
+        cache.set_triangle_count(&pm, triangles);
+        worst_uv_error(&mesh, cache.indices())
+    };
+    for triangles in [200, 100] {
+        let plain = error_at(&BuildOptions::default(), triangles);
+        let weighted = error_at(&BuildOptions::default().with_uv_weight(1.0), triangles);
+        eprintln!(
+            "{triangles} triangles: worst UV error {weighted} with the UV term, {plain} without"
+        );
+        assert!(
+            weighted * 4.0 < plain,
+            "{triangles} triangles: UV error {weighted} with the UV term, {plain} without"
+        );
+    }
+}

@@ -108,6 +108,9 @@ fn build_bytes(b: &BuildInfo) -> Vec<u8> {
         CollapseOperator::Edge => 0,
         CollapseOperator::Triangle => 1,
     });
+    for x in [o.normal_weight, o.uv_weight, o.color_weight] {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
     out
 }
 
@@ -220,7 +223,7 @@ fn skin_bytes(s: &BakedSkin) -> Vec<u8> {
 pub(super) fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
     let version = container::peek(bytes).map_or(FORMAT_VERSION, |(v, _)| v);
     let sections = container::read(bytes, 0, FORMAT_VERSION, &FILE_SECTIONS)?;
-    let build = read_build(section(&sections, b"SRC ")?)?;
+    let build = read_build(section(&sections, b"SRC ")?, version)?;
     let mut r = Reader::new(section(&sections, b"KEYS")?);
     let count = r.u32()? as usize;
     let mut keys: Vec<(String, u64)> = Vec::new();
@@ -301,7 +304,9 @@ pub(super) fn entry_sections(bytes: &[u8]) -> Result<Vec<(String, u64)>, MrmErro
     Ok(out)
 }
 
-fn read_build(s: Section<'_>) -> Result<BuildInfo, MrmError> {
+/// The build information of a file of format `version` (attribute weights from version 3;
+/// older files were built without them).
+fn read_build(s: Section<'_>, version: u32) -> Result<BuildInfo, MrmError> {
     let mut r = Reader::new(s);
     let source_hash = r.u64()?;
     let source_name = r.string()?;
@@ -329,7 +334,16 @@ fn read_build(s: Section<'_>) -> Result<BuildInfo, MrmError> {
                 ));
             }
         },
+        normal_weight: 0.0,
+        uv_weight: 0.0,
+        color_weight: 0.0,
     };
+    let mut options = options;
+    if version >= 3 {
+        options.normal_weight = r.f64()?;
+        options.uv_weight = r.f64()?;
+        options.color_weight = r.f64()?;
+    }
     r.finish()?;
     Ok(BuildInfo {
         source_name,

@@ -57,7 +57,7 @@
 //!
 //! | tag | contents |
 //! |---|---|
-//! | `SRC ` | source hash (`u64`, FNV-1a of the source file); source name, partition, writer (strings); skinned (`u8`) and δ (`f32`); the [`BuildOptions`]: `min_triangles` (`u64`), `max_error` (`f32`), `border_weight`, `min_normal_cos`, `regularization`, `local_weight`, `weight_exponent` (`f64` each), `view_dependent` (`u8`), `pair_distance` (`f32`), `operator` (`u8`: 0 edge, 1 triangle) |
+//! | `SRC ` | source hash (`u64`, FNV-1a of the source file); source name, partition, writer (strings); skinned (`u8`) and δ (`f32`); the [`BuildOptions`]: `min_triangles` (`u64`), `max_error` (`f32`), `border_weight`, `min_normal_cos`, `regularization`, `local_weight`, `weight_exponent` (`f64` each), `view_dependent` (`u8`), `pair_distance` (`f32`), `operator` (`u8`: 0 edge, 1 triangle); from version 3, `normal_weight`, `uv_weight`, `color_weight` (`f64` each; 0 for older files) |
 //! | `KEYS` | asset count `A` (`u32`); per asset: its key (string) and its container's length (`u64`) |
 //! | `ASET` | the `A` asset containers, one after the other |
 //!

@@ -43,6 +43,12 @@ pub(crate) struct CompareArgs {
     /// Our build's collapse operator: `edge` or Hoxha's `triangle` (default: the crate's).
     #[arg(long, value_parser = parse_operator)]
     operator: Option<CollapseOperator>,
+    /// Our build's `BuildOptions::normal_weight` (default: the crate's default).
+    #[arg(long)]
+    normal_weight: Option<f64>,
+    /// Our build's `BuildOptions::uv_weight` (default: the crate's default).
+    #[arg(long)]
+    uv_weight: Option<f64>,
 }
 
 fn parse_operator(s: &str) -> Result<CollapseOperator, String> {
@@ -281,7 +287,8 @@ struct Report {
 /// whole mesh's distance at that ratio.
 type Partitioned = (usize, Distance, Distance);
 
-/// The default [`BuildOptions`] with `--local-weight`, `--weight-exponent` and `--operator`.
+/// The default [`BuildOptions`] with `--local-weight`, `--weight-exponent`, `--operator`,
+/// `--normal-weight` and `--uv-weight`.
 fn build_options(args: &CompareArgs) -> BuildOptions {
     let mut build_options = BuildOptions::default();
     if let Some(w) = args.local_weight {
@@ -292,6 +299,12 @@ fn build_options(args: &CompareArgs) -> BuildOptions {
     }
     if let Some(o) = args.operator {
         build_options.operator = o;
+    }
+    if let Some(w) = args.normal_weight {
+        build_options.normal_weight = w;
+    }
+    if let Some(w) = args.uv_weight {
+        build_options.uv_weight = w;
     }
     build_options
 }
