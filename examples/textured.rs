@@ -157,7 +157,7 @@ fn run(args: &Args) -> Result<(), String> {
                 "ratio": ratio,
                 "budget": budget,
                 "triangles": drawn,
-                "ours": { "psnr": ours_psnr, "mad": ours_mad },
+                "ours": { "psnr": ours_psnr, "mad": ours_mad, "mean_color": mean_color(&ours) },
             });
             shots.push((format!("ours_{ratio}"), ours));
             if !args.no_peer {
@@ -182,6 +182,7 @@ fn run(args: &Args) -> Result<(), String> {
         views.push(json!({
             "view": k,
             "varied": common::varied(&reference),
+            "mean_color": mean_color(&reference),
             "full_detail": {
                 "fraction_over_2": fraction,
                 "max_channel_difference": max,
@@ -624,6 +625,24 @@ fn psnr_mad(a: &Image, b: &Image) -> (f64, f64) {
         (10.0 * (255.0 * 255.0 / mse).log10()).min(IDENTICAL_PSNR)
     };
     (psnr, absolute / count.max(1) as f64)
+}
+
+/// The mean RGB (of 255) of the pixels an image covers (not the clear colour): a level drawn
+/// with NaN normals or a missing attribute comes out unlit or untextured, far from the
+/// reference's, while a coarser shape keeps it.
+fn mean_color(image: &Image) -> [f64; 3] {
+    let Some(data) = &image.data else {
+        return [0.0; 3];
+    };
+    let clear = &data[..4];
+    let (mut sum, mut count) = ([0.0f64; 3], 0usize);
+    for p in data.chunks_exact(4).filter(|p| *p != clear) {
+        for c in 0..3 {
+            sum[c] += f64::from(p[c]);
+        }
+        count += 1;
+    }
+    sum.map(|x| x / count.max(1) as f64)
 }
 
 /// Images of one size side by side, left to right.
