@@ -75,10 +75,23 @@ fn apply_point(c: &[Vec4; 4], p: Vec3) -> Vec3 {
     (c[0] * p.x + c[1] * p.y + c[2] * p.z + c[3]).truncate()
 }
 
-/// The blended upper 3x3 applied to a normal, not normalised (see [`blend`]).
+/// The inverse transpose of the blended upper 3x3 applied to a normal, as Bevy's skinning
+/// shader turns normals (`skin_normals`), up to a positive factor: its cofactor matrix
+/// (three cross products, no division), sign-corrected for a mirroring matrix. Not
+/// normalised (see [`blend`]). A singular matrix turns the normal by itself.
 #[inline(always)]
 fn apply_normal(c: &[Vec4; 4], n: Vec3) -> Vec3 {
-    (c[0] * n.x + c[1] * n.y + c[2] * n.z).truncate()
+    let (x, y, z) = (c[0].truncate(), c[1].truncate(), c[2].truncate());
+    let (cx, cy, cz) = (y.cross(z), z.cross(x), x.cross(y));
+    let det = z.dot(cz);
+    let turned = cx * n.x + cy * n.y + cz * n.z;
+    if det > 0.0 {
+        turned
+    } else if det < 0.0 {
+        -turned
+    } else {
+        x * n.x + y * n.y + z * n.z
+    }
 }
 
 /// Places one vertex the way [`blend_with_rigid`] does: a rigid vertex by its dominant
@@ -101,11 +114,12 @@ pub fn skin_position(
     apply_point(&skin_matrix(matrices, joints, weights, rigid), position)
 }
 
-/// Turns one normal the way [`blend_with_rigid`] does: the blended matrix's upper 3x3 applied
-/// to the normal, **not normalised** (see [`blend`] for why); call
-/// [`Vec3::normalize_or`] on it when a unit vector is needed.
+/// Turns one normal the way [`blend_with_rigid`] does: the inverse transpose of the blended
+/// matrix's upper 3x3 (up to a positive factor) applied to the normal, as Bevy's skinning
+/// shader does, **not normalised** (see [`blend`] for why); call [`Vec3::normalize_or`] on it
+/// when a unit vector is needed.
 ///
-/// See also [`skin_position`].
+/// See also [`skin_position`], [`skin_tangent`].
 #[inline]
 #[must_use]
 pub fn skin_normal(
@@ -118,6 +132,22 @@ pub fn skin_normal(
     apply_normal(&skin_matrix(matrices, joints, weights, rigid), normal)
 }
 
+/// Turns one tangent (or any direction in the surface): the blended matrix's upper 3x3 itself
+/// applied to it, as Bevy's shader turns tangents (`mesh_tangent_local_to_world`), **not
+/// normalised**. With [`skin_normal`] it stays perpendicular to the normal.
+#[inline]
+#[must_use]
+pub fn skin_tangent(
+    matrices: &[Mat4],
+    tangent: Vec3,
+    joints: [u16; MAX_INFLUENCES],
+    weights: [f32; MAX_INFLUENCES],
+    rigid: bool,
+) -> Vec3 {
+    let c = skin_matrix(matrices, joints, weights, rigid);
+    (c[0] * tangent.x + c[1] * tangent.y + c[2] * tangent.z).truncate()
+}
+
 /// Linear blend skinning of the listed vertices only (sections 5.3 and 5.4: a region's cache
 /// deforms only the vertices its current level refers to).
 ///
@@ -127,11 +157,11 @@ pub fn skin_normal(
 /// - `out_positions[i] = Σ_k w_k M_{j_k} positions[i]`, which is the blended matrix
 ///   `Σ_k w_k M_{j_k}` applied to the point (one matrix product per vertex, however many
 ///   influences);
-/// - `out_normals[i]` = the blended matrix's upper 3x3 applied to `normals[i]`. Its direction
-///   is exact for rotations and uniform scales; under non-uniform scale it is the usual
-///   linear-blend approximation, not the inverse transpose. It is **not normalised**:
-///   blending two rotations shortens it a little (by the cosine of half the angle between
-///   them, at most), and that length carries no meaning. Renormalise before shading, as
+/// - `out_normals[i]` = the inverse transpose of the blended matrix's upper 3x3 (its cofactor
+///   matrix: the same direction, three cross products and no division) applied to
+///   `normals[i]`, as Bevy's skinning shader turns normals, so a model skinned here shades
+///   like the same model skinned by Bevy. It is **not normalised**: its length carries no
+///   meaning. Renormalise before shading, as
 ///   every renderer of skinned normals does anyway: Bevy's vertex shader normalises each
 ///   normal (`mesh_normal_local_to_world`), so normalising here would pay for it twice,
 ///   and it is about half the cost of a one-influence vertex.

@@ -28,7 +28,7 @@ use super::tasks::par_chunks;
 use crate::bounds::Obb;
 use crate::mesh::IndexedMesh;
 use crate::regions::{Geomorphs, RegionCaches, RegionMesh};
-use crate::skin::{Influences, SkinRegionKind, blend, skin_normal};
+use crate::skin::{Influences, SkinRegionKind, blend, skin_tangent};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::system::NonSendMarker;
 use bevy::mesh::VertexAttributeValues;
@@ -356,8 +356,8 @@ impl Job<'_> {
             Some(&mut *normals),
         );
         if let Some(source) = &self.source.tangents {
-            // The blended matrix's upper 3x3 turns a tangent as it turns a normal (Bevy's
-            // vertex shader normalises both); a moving vertex keeps its own tangent.
+            // The blended matrix's upper 3x3 turns a tangent (the normal takes its inverse
+            // transpose), as Bevy's shader does; the shader normalises both.
             let (joints, weights) = (&self.influences.joints, &self.influences.weights);
             for &v in &r.written {
                 let v = v as usize;
@@ -369,7 +369,7 @@ impl Job<'_> {
                 ) else {
                     continue;
                 };
-                let xyz = skin_normal(self.matrices, t.truncate(), j, w, false);
+                let xyz = skin_tangent(self.matrices, t.truncate(), j, w, false);
                 *out = xyz.extend(t.w).to_array();
             }
         }
