@@ -30,6 +30,7 @@ use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::bevy_mesh::from_bevy_mesh;
+use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{
     AslodPlugin, FullDetail, MultiresInstance, MultiresScene, MultiresSceneModels,
     MultiresSourceMesh, PolygonBudget,
@@ -73,6 +74,15 @@ struct Args {
     /// Leave meshoptimizer's levels out.
     #[arg(long)]
     no_peer: bool,
+    /// Our build's `BuildOptions::normal_weight` (default: the crate's).
+    #[arg(long)]
+    normal_weight: Option<f64>,
+    /// Our build's `BuildOptions::uv_weight` (default: the crate's).
+    #[arg(long)]
+    uv_weight: Option<f64>,
+    /// Our build's `BuildOptions::color_weight` (default: the crate's).
+    #[arg(long)]
+    color_weight: Option<f64>,
 }
 
 fn main() {
@@ -105,7 +115,12 @@ fn run(args: &Args) -> Result<(), String> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("create {}: {e}", args.out.display()))?;
     let (root, file) = common::split_model_path(&args.model)?;
-    let mut stage = Stage::new(&root, &file, args.size)?;
+    let mut options = BuildOptions::default();
+    options.normal_weight = args.normal_weight.unwrap_or(options.normal_weight);
+    options.uv_weight = args.uv_weight.unwrap_or(options.uv_weight);
+    options.color_weight = args.color_weight.unwrap_or(options.color_weight);
+    let scene = MultiresScene::default().with_build_options(options.clone());
+    let mut stage = Stage::new(&root, &file, args.size, scene)?;
     let (center, radius) = stage.bounds()?;
     let full = stage.full_triangles();
     let mut views = Vec::new();
@@ -207,6 +222,7 @@ fn run(args: &Args) -> Result<(), String> {
         "size": args.size,
         "full_triangles": full,
         "peer_weights": PEER_WEIGHTS,
+        "attribute_weights": [options.normal_weight, options.uv_weight, options.color_weight],
         "views": views,
         "summary": summary(&views, &args.ratios),
         "coarse_attributes": coarse_attributes,
@@ -223,7 +239,7 @@ fn run(args: &Args) -> Result<(), String> {
 impl Stage {
     /// Loads the scene twice, waits until both are loaded with their textures and the
     /// `MultiresScene` is converted.
-    fn new(root: &Path, file: &str, size: u32) -> Result<Self, String> {
+    fn new(root: &Path, file: &str, size: u32, multires: MultiresScene) -> Result<Self, String> {
         let mut app = App::new();
         let plugins = DefaultPlugins
             .set(AssetPlugin {
@@ -257,7 +273,7 @@ impl Stage {
         let ours = world
             .spawn((
                 WorldAssetRoot(scene),
-                MultiresScene::default(),
+                multires,
                 Transform::default(),
                 Visibility::Hidden,
             ))

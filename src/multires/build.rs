@@ -18,7 +18,7 @@
 use super::ProgressiveMesh;
 use super::heap::IndexedHeap;
 use super::hierarchy::ViewData;
-use super::quadric::Quadric;
+use super::quadric::{AttributeQuadrics, Quadric};
 use super::records::{Layout, Unpacked, error_to_u16};
 use crate::mesh::{IndexedMesh, MeshError, weld_positions};
 use glam::{DVec3, Vec3};
@@ -110,21 +110,22 @@ pub struct BuildOptions {
     /// Weight of the vertex normals in the collapse cost (see
     /// [`uv_weight`](Self::uv_weight)). Default: `0.0` (off).
     pub normal_weight: f64,
-    /// Weight of the first UV set in the collapse cost: a collapse also pays the squared
-    /// difference between the attributes the vertex that goes had and those the moved
-    /// triangles interpolate where it was, times the weight, in units of the bounding-box
-    /// diagonal (an error of 0.01 in UV costs what moving 1 % of the diagonal does at weight
-    /// 1). Attributes that vary linearly over the surface cost nothing to simplify; creases
-    /// in them (a UV island's outline, a sharp turn of the normals, a colour border) do. Only
-    /// the order of collapses changes: the error table stays geometric. `0.0` turns a term
-    /// off; negative or non-finite values count as `0.0` (with a warning).
+    /// Weight of the first UV set in the collapse cost. With attribute weights, each
+    /// attribute vertex keeps an attribute quadric (Hoppe 1999's metric, as meshoptimizer's
+    /// `simplify_with_attributes`): over the triangles merged into it, each attribute as the
+    /// linear function that interpolates it across its triangle. A collapse then also pays,
+    /// times the weight and in units of the squared bounding-box diagonal (an error of 0.01
+    /// in UV costs what moving 1 % of the diagonal does at weight 1), how far the values of
+    /// the vertex that takes its place are from those functions there. Attributes that vary
+    /// linearly cost nothing to simplify; creases in them (a fold in the UVs, a sharp turn of
+    /// the normals, a colour border) do. Only the order of collapses changes: the error table
+    /// stays geometric. `0.0` turns a term off; negative or non-finite values count as `0.0`
+    /// (with a warning).
     ///
-    /// Default: `0.0` (off). **Experimental**: the term is measured at the vertex that goes
-    /// only, and accumulates nothing as collapses merge vertices (no attribute quadrics), so
-    /// it helps some levels and hurts others: on the WaterBottle, weights of 0.05 raised the
-    /// rendered PSNR at 50 % of the triangles and lowered it at 20 %; on `spot.obj` a UV
-    /// weight of 1 costs up to 64 % more Hausdorff distance and builds 2.4× slower (see
-    /// `docs/performance.md`, "Attribute terms").
+    /// Default: `0.0` (off). **Experimental**: the weights are not tuned against the
+    /// geometric terms yet. On the WaterBottle they change the rendered PSNR at 50 % of the
+    /// triangles and at 20 % in opposite directions, and on `spot.obj` a UV weight costs
+    /// geometric error (see `docs/performance.md`, "Textured assets in pixels").
     pub uv_weight: f64,
     /// Weight of the vertex colours ([`COLOR_ID`](crate::mesh::COLOR_ID), RGBA as floats)
     /// in the collapse cost (see [`uv_weight`](Self::uv_weight)). Default: `0.0` (off).
@@ -299,6 +300,8 @@ struct Builder<'a> {
     attribute_stride: usize,
     /// The diagonal squared: attribute errors in the units of costs.
     attribute_scale: f64,
+    /// Per attribute vertex, its attribute quadric (empty when no term is on).
+    attribute_quadrics: AttributeQuadrics,
 }
 
 /// Per position, its live triangles: every list in one arena, in position order (so the
@@ -503,6 +506,7 @@ impl<'a> Builder<'a> {
             attributes: Vec::new(),
             attribute_stride: 0,
             attribute_scale: diagonal * diagonal,
+            attribute_quadrics: AttributeQuadrics::default(),
         };
         (builder.attributes, builder.attribute_stride) = attribute_table(mesh, options);
         builder.classify(pinned);
@@ -721,6 +725,20 @@ impl<'a> Builder<'a> {
 
     /// Phase 3: face quadrics, and edge quadrics that hold borders and seams in place.
     fn fill_quadrics(&mut self) {
+        let s = self.attribute_stride;
+        if s > 0 {
+            self.attribute_quadrics = AttributeQuadrics::new(self.mesh.positions.len(), s);
+            for tri in &self.tris {
+                let points = tri.map(|v| self.points[self.pos[v as usize] as usize]);
+                let weight = (points[1] - points[0])
+                    .cross(points[2] - points[0])
+                    .length()
+                    .sqrt();
+                let values = tri.map(|v| &self.attributes[v as usize * s..(v as usize + 1) * s]);
+                self.attribute_quadrics
+                    .add_triangle(*tri, points, values, weight);
+            }
+        }
         for tri in &self.tris {
             let [a, b, c] = tri.map(|v| self.pos[v as usize]);
             let (pa, pb, pc) = (
@@ -1294,89 +1312,36 @@ impl<'a> Builder<'a> {
     }
 
     /// The attribute error of collapsing `u` onto `w`, in the units of costs: for each
-    /// attribute vertex at `u`, the squared difference between its weighted attributes and
-    /// those the moved triangles on its side interpolate at `u`'s place (in the one that
-    /// holds it, or else the one it lies least outside of, barycentrics clamped), summed.
-    /// 0 when no attribute term is on, or `u` and `w` share no triangle.
+    /// attribute vertex at `u`, its [attribute quadric](AttributeQuadrics) at `w`'s place
+    /// with the values of the attribute vertex at `w` that takes its place (as
+    /// `check_collapse` maps them, from the triangles on the edge), summed. 0 when no
+    /// attribute term is on, or `u` and `w` share no triangle.
     fn attribute_error(&self, u: u32, w: u32) -> f64 {
         let s = self.attribute_stride;
         if s == 0 {
             return 0.0;
         }
-        let value = |v: u32| &self.attributes[v as usize * s..(v as usize + 1) * s];
-        // Which attribute vertex at w takes the place of each one at u (as `check_collapse`
-        // maps them): from the triangles on the edge.
-        let mut map = [(u32::MAX, u32::MAX); 8];
-        let mut mapped = 0;
-        // Per attribute vertex at u: (how far outside, error) of its best triangle so far.
-        let mut best = [(u32::MAX, f64::INFINITY, f64::INFINITY); 8];
-        let mut sides = 0;
+        let mut mapped = [u32::MAX; 8];
+        let mut count = 0;
+        let pw = self.points[w as usize];
+        let mut error = 0.0;
         for &t in &self.adj[u as usize] {
             let tri = self.tris[t as usize];
             let ku = tri.iter().position(|&v| self.pos[v as usize] == u);
             let kw = tri.iter().position(|&v| self.pos[v as usize] == w);
-            if let (Some(ku), Some(kw)) = (ku, kw)
-                && mapped < map.len()
-                && !map[..mapped].iter().any(|m| m.0 == tri[ku])
-            {
-                map[mapped] = (tri[ku], tri[kw]);
-                mapped += 1;
+            let (Some(ku), Some(kw)) = (ku, kw) else {
+                continue;
+            };
+            let (a, b) = (tri[ku], tri[kw]);
+            if mapped[..count].contains(&a) || count == mapped.len() {
+                continue;
             }
+            mapped[count] = a;
+            count += 1;
+            let values = &self.attributes[b as usize * s..(b as usize + 1) * s];
+            error += self.attribute_quadrics.error(a, pw, values);
         }
-        let (pu, pw) = (self.points[u as usize], self.points[w as usize]);
-        for &t in &self.adj[u as usize] {
-            let tri = self.tris[t as usize];
-            let Some(k) = tri.iter().position(|&v| self.pos[v as usize] == u) else {
-                continue;
-            };
-            let (xa, xb) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
-            let (a, b) = (self.pos[xa as usize], self.pos[xb as usize]);
-            if a == w || b == w {
-                continue;
-            }
-            let Some(&(av, bw)) = map[..mapped].iter().find(|m| m.0 == tri[k]) else {
-                continue;
-            };
-            // Barycentrics of u's place in the moved triangle (w, a, b).
-            let (e0, e1, d) = (
-                self.points[a as usize] - pw,
-                self.points[b as usize] - pw,
-                pu - pw,
-            );
-            let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
-            let denom = d00 * d11 - d01 * d01;
-            if denom <= 0.0 {
-                continue;
-            }
-            let (d20, d21) = (d.dot(e0), d.dot(e1));
-            let beta = (d11 * d20 - d01 * d21) / denom;
-            let gamma = (d00 * d21 - d01 * d20) / denom;
-            let alpha = 1.0 - beta - gamma;
-            let outside = -alpha.min(beta).min(gamma).min(0.0);
-            let [alpha, beta, gamma] = [alpha, beta, gamma].map(|x| x.max(0.0));
-            let sum = alpha + beta + gamma;
-            let (from, to_w, to_a, to_b) = (value(av), value(bw), value(xa), value(xb));
-            let mut error = 0.0;
-            for i in 0..s {
-                let interpolated = (alpha * to_w[i] + beta * to_a[i] + gamma * to_b[i]) / sum;
-                let e = from[i] - interpolated;
-                error += e * e;
-            }
-            let slot = match best[..sides].iter().position(|b| b.0 == av) {
-                Some(i) => i,
-                None if sides < best.len() => {
-                    sides += 1;
-                    best[sides - 1].0 = av;
-                    sides - 1
-                }
-                None => continue,
-            };
-            let (_, o, e) = &mut best[slot];
-            if (outside, error) < (*o, *e) {
-                (*o, *e) = (outside, error);
-            }
-        }
-        best[..sides].iter().map(|b| b.2).sum::<f64>() * self.attribute_scale
+        error * self.attribute_scale
     }
 
     /// The far edge of every triangle around `u`, in winding order, into `out` (cleared).
@@ -1479,6 +1444,11 @@ impl<'a> Builder<'a> {
         let step = self.collapses.len() as u32;
         self.moves
             .extend(map.iter().map(|&(old, new)| (step, old, new)));
+        if self.attribute_stride > 0 {
+            for &(old, new) in &map {
+                self.attribute_quadrics.merge(old, new);
+            }
+        }
         self.scratch.map = map;
         self.adj_u = adj_u;
         let q = self.quadrics[u as usize];

@@ -6,6 +6,7 @@ use super::components::{CountInBudget, Geomorph, MultiresModel};
 use super::error::MultiresError;
 use super::skin::MultiresSkin;
 use crate::bevy_mesh::from_bevy_mesh;
+use crate::multires::BuildOptions;
 use crate::skin::DEFAULT_RIGID_DELTA;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::platform::collections::HashMap;
@@ -48,6 +49,9 @@ pub struct MultiresScene {
     pub rigid_delta: f32,
     /// How unskinned meshes are cut into regions. Default [`PartitionSpec::Single`].
     pub static_partition: PartitionSpec,
+    /// How unskinned meshes are built (attribute weights, local weight, …). Skinned meshes
+    /// build with the default options. Default: `BuildOptions::default()`.
+    pub build_options: BuildOptions,
     /// The asset path of an `.mrm` file baked from this scene's glTF, to load instead of
     /// building. Default `None`. (Its own δ and partition apply, not the two above.)
     pub baked: Option<String>,
@@ -58,6 +62,7 @@ impl Default for MultiresScene {
         Self {
             rigid_delta: DEFAULT_RIGID_DELTA,
             static_partition: PartitionSpec::Single,
+            build_options: BuildOptions::default(),
             baked: None,
         }
     }
@@ -68,6 +73,13 @@ impl MultiresScene {
     #[must_use]
     pub fn with_baked(mut self, path: impl Into<String>) -> Self {
         self.baked = Some(path.into());
+        self
+    }
+
+    /// Builds unskinned meshes with `options` (see [`build_options`](Self::build_options)).
+    #[must_use]
+    pub fn with_build_options(mut self, options: BuildOptions) -> Self {
+        self.build_options = options;
         self
     }
 }
@@ -103,13 +115,15 @@ pub(crate) struct SceneAssetCache {
     warned_morph: bool,
 }
 
-/// What an asset is built from: the mesh, its skin, and the scene's options (δ's bits and the
-/// static partition), so scenes with different options do not share an asset.
+/// What an asset is built from: the mesh, its skin, and the scene's options (δ's bits, the
+/// static partition and the build options, by their printed form), so scenes with different
+/// options do not share an asset.
 type BuildKey = (
     AssetId<Mesh>,
     Option<AssetId<SkinnedMeshInverseBindposes>>,
     u32,
     PartitionSpec,
+    String,
 );
 
 fn build_key(mesh: &Mesh3d, skin: Option<&SkinnedMesh>, options: &MultiresScene) -> BuildKey {
@@ -118,6 +132,7 @@ fn build_key(mesh: &Mesh3d, skin: Option<&SkinnedMesh>, options: &MultiresScene)
         skin.map(|s| s.inverse_bindposes.id()),
         options.rigid_delta.to_bits(),
         options.static_partition,
+        format!("{:?}", options.build_options),
     )
 }
 
@@ -138,6 +153,7 @@ struct BuildInputs {
     joint_names: Vec<String>,
     rigid_delta: f32,
     static_partition: PartitionSpec,
+    build_options: BuildOptions,
 }
 
 impl BuildInputs {
@@ -153,6 +169,7 @@ impl BuildInputs {
                         self.inverse_bindposes,
                         self.rigid_delta,
                         self.static_partition,
+                        &self.build_options,
                     )
                 }))
                 .unwrap_or(Err(MultiresError::BuildPanicked))
@@ -184,13 +201,14 @@ fn build(
     inverse_bindposes: Option<Vec<Mat4>>,
     rigid_delta: f32,
     static_partition: PartitionSpec,
+    build_options: &BuildOptions,
 ) -> Result<MultiresMesh, MultiresError> {
     let indexed = mesh?;
     match inverse_bindposes {
         Some(ib) => MultiresMesh::from_skinned(&indexed, &ib, rigid_delta),
         None => {
             let partition = static_partition.partition(&indexed)?;
-            MultiresMesh::from_indexed(&indexed, &partition)
+            MultiresMesh::from_indexed_with(&indexed, &partition, build_options)
         }
     }
 }
@@ -388,6 +406,7 @@ impl SceneAssetCache {
                 }),
                 rigid_delta: options.rigid_delta,
                 static_partition: options.static_partition,
+                build_options: options.build_options.clone(),
             };
             let label = mesh3d.0.path().and_then(|p| p.label());
             match (&options.baked, label) {
