@@ -404,6 +404,8 @@ struct Scratch {
     /// The far edge of each triangle around the position being ranked, in winding order:
     /// its two positions and their points (see [`Builder::local_error`]).
     fan: Vec<(u32, u32, DVec3, DVec3)>,
+    /// The wedges around the position being ranked (see [`Builder::wedges_into`]).
+    wedges: Vec<(u32, u32, u32)>,
 }
 
 impl Scratch {
@@ -1200,6 +1202,8 @@ impl<'a> Builder<'a> {
             self.neighbors_into(u, &mut nu, &mut scratch);
             self.scratch = scratch;
         }
+        let mut wedges = std::mem::take(&mut self.scratch.wedges);
+        self.wedges_into(u, &mut wedges);
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
         let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
@@ -1234,13 +1238,14 @@ impl<'a> Builder<'a> {
             candidates[i].0 = if !validate && self.level(bound) > best {
                 bound
             } else {
-                let cost = self.cost(u, w, q, &fan);
+                let cost = self.cost(u, w, q, &fan, &wedges);
                 best = best.min(self.level(cost));
                 cost
             };
         }
         self.scratch.neighbors = nu;
         self.scratch.fan = fan;
+        self.scratch.wedges = wedges;
         let chosen = if validate {
             candidates.sort_unstable_by(|a, b| self.order(*a, *b));
             candidates
@@ -1302,8 +1307,15 @@ impl<'a> Builder<'a> {
     /// [`local_weight`](BuildOptions::local_weight) times the
     /// [`local_error`](Self::local_error) over `u`'s `fan`, [`settle`]d.
     #[inline]
-    fn cost(&self, u: u32, w: u32, quadric: f64, fan: &[(u32, u32, DVec3, DVec3)]) -> f64 {
-        let attributes = self.attribute_error(u, w);
+    fn cost(
+        &self,
+        u: u32,
+        w: u32,
+        quadric: f64,
+        fan: &[(u32, u32, DVec3, DVec3)],
+        wedges: &[(u32, u32, u32)],
+    ) -> f64 {
+        let attributes = self.attribute_error(w, wedges);
         if self.local_weight > 0.0 {
             settle(quadric + self.local_weight * self.local_error(u, w, fan) + attributes)
         } else {
@@ -1311,33 +1323,46 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The attribute error of collapsing `u` onto `w`, in the units of costs: for each
-    /// attribute vertex at `u`, its [attribute quadric](AttributeQuadrics) at `w`'s place
-    /// with the values of the attribute vertex at `w` that takes its place (as
-    /// `check_collapse` maps them, from the triangles on the edge), summed. 0 when no
-    /// attribute term is on, or `u` and `w` share no triangle.
-    fn attribute_error(&self, u: u32, w: u32) -> f64 {
+    /// Every corner next to `u`'s in its triangles, as `(position, attribute vertex at u,
+    /// attribute vertex there)`, into `out` (cleared; left empty when no attribute term is
+    /// on): the attribute-vertex maps of all of `u`'s collapses at once.
+    fn wedges_into(&self, u: u32, out: &mut Vec<(u32, u32, u32)>) {
+        out.clear();
+        if self.attribute_stride == 0 {
+            return;
+        }
+        for &t in &self.adj[u as usize] {
+            let tri = self.tris[t as usize];
+            if let Some((k, a, b)) = others(tri, &self.pos, u) {
+                out.push((a, tri[k], tri[(k + 1) % 3]));
+                out.push((b, tri[k], tri[(k + 2) % 3]));
+            }
+        }
+    }
+
+    /// The attribute error of collapsing `u` onto `w`, in the units of costs, from `u`'s
+    /// [`wedges`](Self::wedges_into): for each attribute vertex at `u`, its
+    /// [attribute quadric](AttributeQuadrics) at `w`'s place with the values of the
+    /// attribute vertex at `w` that takes its place (as `check_collapse` maps them, from the
+    /// triangles on the edge), summed. 0 when no attribute term is on, or `u` and `w` share
+    /// no triangle.
+    fn attribute_error(&self, w: u32, wedges: &[(u32, u32, u32)]) -> f64 {
         let s = self.attribute_stride;
         if s == 0 {
             return 0.0;
         }
-        let mut mapped = [u32::MAX; 8];
-        let mut count = 0;
         let pw = self.points[w as usize];
         let mut error = 0.0;
-        for &t in &self.adj[u as usize] {
-            let tri = self.tris[t as usize];
-            let ku = tri.iter().position(|&v| self.pos[v as usize] == u);
-            let kw = tri.iter().position(|&v| self.pos[v as usize] == w);
-            let (Some(ku), Some(kw)) = (ku, kw) else {
-                continue;
-            };
-            let (a, b) = (tri[ku], tri[kw]);
-            if mapped[..count].contains(&a) || count == mapped.len() {
+        let mut seen = [u32::MAX; 2];
+        for &(p, a, b) in wedges {
+            if p != w || seen.contains(&a) {
                 continue;
             }
-            mapped[count] = a;
-            count += 1;
+            if seen[0] == u32::MAX {
+                seen[0] = a;
+            } else {
+                seen[1] = a;
+            }
             let values = &self.attributes[b as usize * s..(b as usize + 1) * s];
             error += self.attribute_quadrics.error(a, pw, values);
         }
@@ -1610,13 +1635,15 @@ impl<'a> Builder<'a> {
             // win by their quadric error alone, in an order that depends on the ring's.
             let mut fan = Vec::new();
             self.fan_into(x, &mut fan);
+            let mut wedges = Vec::new();
+            self.wedges_into(x, &mut wedges);
             let exact = self
                 .candidates
                 .iter()
                 .filter(|c| c.1 != chosen)
                 .map(|&(_, y)| {
                     let q = self.quadric_cost(x, y).expect("a candidate is allowed");
-                    self.level(self.cost(x, y, q, &fan))
+                    self.level(self.cost(x, y, q, &fan, &wedges))
                 })
                 .fold(f64::INFINITY, f64::min);
             assert!(
@@ -1734,7 +1761,9 @@ impl<'a> Builder<'a> {
             if self.local_weight > 0.0 {
                 self.fan_into(x, &mut fan);
             }
-            eligible.push((self.cost(x, w, q, &fan), x));
+            let mut wedges = Vec::new();
+            self.wedges_into(x, &mut wedges);
+            eligible.push((self.cost(x, w, q, &fan, &wedges), x));
         }
         self.scratch.fan = fan;
         // The cheaper apex first; the other when the cheaper one may not go.
