@@ -1,7 +1,7 @@
 //! Linear blend skinning of the vertices a polygon cache refers to (sections 5.3 and 5.4).
 
 use super::{Influences, MAX_INFLUENCES};
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec3A, Vec4};
 
 /// The blended affine skinning matrix of one vertex, as four columns.
 ///
@@ -81,17 +81,22 @@ fn apply_point(c: &[Vec4; 4], p: Vec3) -> Vec3 {
 /// normalised (see [`blend`]). A singular matrix turns the normal by itself.
 #[inline(always)]
 fn apply_normal(c: &[Vec4; 4], n: Vec3) -> Vec3 {
-    let (x, y, z) = (c[0].truncate(), c[1].truncate(), c[2].truncate());
+    // Vec3A: the cross products run on SIMD lanes.
+    let (x, y, z) = (
+        Vec3A::from_vec4(c[0]),
+        Vec3A::from_vec4(c[1]),
+        Vec3A::from_vec4(c[2]),
+    );
     let (cx, cy, cz) = (y.cross(z), z.cross(x), x.cross(y));
     let det = z.dot(cz);
     let turned = cx * n.x + cy * n.y + cz * n.z;
-    if det > 0.0 {
+    Vec3::from(if det > 0.0 {
         turned
     } else if det < 0.0 {
         -turned
     } else {
         x * n.x + y * n.y + z * n.z
-    }
+    })
 }
 
 /// Places one vertex the way [`blend_with_rigid`] does: a rigid vertex by its dominant
