@@ -14,7 +14,6 @@
 
 mod common;
 
-use bevy::app::ScheduleRunnerPlugin;
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::RenderTarget;
 use bevy::camera::primitives::Aabb;
@@ -22,12 +21,8 @@ use bevy::gltf::Gltf;
 use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-use bevy::time::TimeUpdateStrategy;
-use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::bevy_mesh::from_bevy_mesh;
 use bevy_aslod::multires::BuildOptions;
@@ -92,6 +87,9 @@ fn main() {
         std::process::exit(1);
     }
 }
+
+/// Plain-scene entities whose meshes were swapped, with their own meshes.
+type Swapped = Vec<(Entity, Handle<Mesh>)>;
 
 /// The screenshots that arrived, by slot.
 #[derive(Resource, Clone, Default)]
@@ -240,24 +238,8 @@ impl Stage {
     /// Loads the scene twice, waits until both are loaded with their textures and the
     /// `MultiresScene` is converted.
     fn new(root: &Path, file: &str, size: u32, multires: MultiresScene) -> Result<Self, String> {
-        let mut app = App::new();
-        let plugins = DefaultPlugins
-            .set(AssetPlugin {
-                file_path: root.to_string_lossy().into_owned(),
-                ..default()
-            })
-            .set(WindowPlugin {
-                primary_window: None,
-                exit_condition: ExitCondition::DontExit,
-                ..default()
-            })
-            .disable::<WinitPlugin>()
-            .disable::<PipelinedRenderingPlugin>();
-        app.add_plugins((plugins, ScheduleRunnerPlugin::run_once()))
-            .add_plugins(AslodPlugin::default())
-            .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
-                1.0 / 60.0,
-            )))
+        let mut app = common::offscreen_app(Some(root));
+        app.add_plugins(AslodPlugin::default())
             .insert_resource(ClearColor(Color::srgb(0.1, 0.1, 0.12)));
         app.finish();
         app.cleanup();
@@ -477,7 +459,7 @@ impl Stage {
     fn swap_in_peer(
         &mut self,
         counts: &[(Handle<Mesh>, usize)],
-    ) -> Result<(Vec<(Entity, Handle<Mesh>)>, usize), String> {
+    ) -> Result<(Swapped, usize), String> {
         let world = self.app.world_mut();
         let mut levels = Vec::new();
         let mut triangles = 0;
@@ -517,7 +499,7 @@ impl Stage {
     }
 
     /// Gives the entities their own meshes back.
-    fn restore(&mut self, swapped: Vec<(Entity, Handle<Mesh>)>) {
+    fn restore(&mut self, swapped: Swapped) {
         for (entity, mesh) in swapped {
             self.app.world_mut().entity_mut(entity).insert(Mesh3d(mesh));
         }

@@ -11,8 +11,10 @@ use bevy::camera::primitives::Aabb;
 use bevy::gltf::Gltf;
 use bevy::input::mouse::AccumulatedMouseMotion;
 use bevy::prelude::*;
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::ScreenshotCaptured;
+use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_aslod::budget::Obb;
@@ -49,6 +51,32 @@ pub fn add_default_plugins(app: &mut App, headless: bool, title: &str, asset_roo
             ..default()
         }));
     }
+}
+
+/// A headless app for offscreen rendering, driven by `update` by hand: `DefaultPlugins`
+/// without a window, winit or pipelined rendering (so each `update` draws its frame), assets
+/// read from `asset_root` when given, and a clock of exactly 1/60 s per frame. The caller adds
+/// its own plugins, then `finish` and `cleanup`.
+pub fn offscreen_app(asset_root: Option<&Path>) -> App {
+    let mut assets = AssetPlugin::default();
+    if let Some(root) = asset_root {
+        assets.file_path = root.to_string_lossy().into_owned();
+    }
+    let plugins = DefaultPlugins
+        .set(assets)
+        .set(WindowPlugin {
+            primary_window: None,
+            exit_condition: ExitCondition::DontExit,
+            ..default()
+        })
+        .disable::<WinitPlugin>()
+        .disable::<PipelinedRenderingPlugin>();
+    let mut app = App::new();
+    app.add_plugins((plugins, ScheduleRunnerPlugin::run_once()))
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
+            1.0 / 60.0,
+        )));
+    app
 }
 
 /// `WIDTHxHEIGHT`, each side 16..=8192 pixels: a clap value parser for image sizes.

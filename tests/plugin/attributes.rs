@@ -18,7 +18,7 @@ use bevy_aslod::regions::Partition;
 use glam::{Mat4, Vec3};
 use std::time::Duration;
 
-#[allow(dead_code, unused_imports)]
+#[allow(unused_imports)]
 #[path = "../common/mod.rs"]
 mod common;
 
