@@ -183,6 +183,30 @@ mod tests {
                 .all(|s| s.joint_names.iter().any(|n| !n.is_empty()))
         );
         std::fs::remove_file(&out_robot).ok();
+        // A normal-mapped glTF without tangents: the baked asset keeps the tangents the
+        // importer makes, in every region's table.
+        let bottle = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shared/testdata/textured/WaterBottle.glb"
+        );
+        let out_bottle = out.with_extension("bottle.mrm");
+        let cli = Cli::parse_from(["aslod", "bake", bottle, "-o", out_bottle.to_str().unwrap()]);
+        let Command::Bake(args) = cli.command else {
+            panic!("parsed as bake");
+        };
+        bake(&args).unwrap();
+        let file = mrm::read(&std::fs::read(&out_bottle).unwrap()).unwrap();
+        assert!(!file.meshes.is_empty());
+        for (key, baked) in &file.meshes {
+            for region in baked.regions.regions() {
+                let v = region.progressive_mesh().vertices();
+                assert!(
+                    v.tangents.is_some() && v.uvs.is_some(),
+                    "{key}: tangents and UVs"
+                );
+            }
+        }
+        std::fs::remove_file(&out_bottle).ok();
         std::fs::write(&out, b"ASLODMRM").unwrap();
         assert!(info(&out).unwrap_err().to_string().contains("header"));
         std::fs::remove_file(&out).ok();
