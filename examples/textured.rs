@@ -40,10 +40,11 @@ const WATER_BOTTLE: &str = concat!(
     "/../shared/testdata/textured/WaterBottle.glb"
 );
 
-/// meshoptimizer's attribute weights: normals (3) and the first UV set (2), relative to the
+/// meshoptimizer's attribute weights: normals (3), the first UV set (2) and, where the mesh
+/// has them, vertex colours (RGBA, 4), relative to the
 /// position error (its header: "the weights determine relative priority of attributes
 /// between each other and wrt position"; its demo weighs normals 0.5).
-const PEER_WEIGHTS: [f32; 5] = [0.5, 0.5, 0.5, 1.0, 1.0];
+const PEER_WEIGHTS: [f32; 9] = [0.5, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
 
 /// The PSNR reported for identical images (JSON has no infinity).
 const IDENTICAL_PSNR: f64 = 100.0;
@@ -69,6 +70,11 @@ struct Args {
     /// Leave meshoptimizer's levels out.
     #[arg(long)]
     no_peer: bool,
+    /// Draw a procedural asset instead of MODEL: a bumpy sphere with vertex colours (bands
+    /// that cross its tessellation) and a second UV set, written as `procedural.glb` into
+    /// the output folder.
+    #[arg(long)]
+    procedural: bool,
     /// Our build's `BuildOptions::normal_weight` (default: the crate's).
     #[arg(long)]
     normal_weight: Option<f64>,
@@ -112,7 +118,15 @@ fn run(args: &Args) -> Result<(), String> {
     }
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("create {}: {e}", args.out.display()))?;
-    let (root, file) = common::split_model_path(&args.model)?;
+    let model = if args.procedural {
+        let path = args.out.join("procedural.glb");
+        std::fs::write(&path, procedural_glb())
+            .map_err(|e| format!("write {}: {e}", path.display()))?;
+        path
+    } else {
+        args.model.clone()
+    };
+    let (root, file) = common::split_model_path(&model)?;
     let mut options = BuildOptions::default();
     options.normal_weight = args.normal_weight.unwrap_or(options.normal_weight);
     options.uv_weight = args.uv_weight.unwrap_or(options.uv_weight);
@@ -216,7 +230,7 @@ fn run(args: &Args) -> Result<(), String> {
     .collect();
     common::save_image(&side_by_side(&picked), &args.out.join("compare.png"))?;
     let report = json!({
-        "model": args.model.display().to_string(),
+        "model": model.display().to_string(),
         "size": args.size,
         "full_triangles": full,
         "peer_weights": PEER_WEIGHTS,
@@ -561,8 +575,8 @@ fn finite(values: &VertexAttributeValues) -> bool {
 }
 
 /// meshoptimizer's `simplify_with_attributes` level of `mesh` with `triangles` triangles
-/// (normals and the first UV set weighted by [`PEER_WEIGHTS`]), as the index buffer a Bevy
-/// user would draw.
+/// (normals, the first UV set and any colours weighted by [`PEER_WEIGHTS`]), as the index
+/// buffer a Bevy user would draw.
 fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
     let indexed = from_bevy_mesh(mesh).map_err(|e| e.to_string())?;
     let n = indexed.positions.len();
@@ -571,8 +585,26 @@ fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
         .clone()
         .unwrap_or_else(|| vec![Vec3::ZERO; n]);
     let uvs = indexed.uvs.clone().unwrap_or_else(|| vec![Vec2::ZERO; n]);
+    let colors = indexed
+        .attribute(bevy_aslod::mesh::COLOR_ID)
+        .and_then(|c| c.to_f32::<4>());
+    let count = if colors.is_some() { 9 } else { 5 };
     let attributes: Vec<f32> = (0..n)
-        .flat_map(|v| [normals[v].x, normals[v].y, normals[v].z, uvs[v].x, uvs[v].y])
+        .flat_map(|v| {
+            let c = colors.as_ref().map_or([0.0; 4], |c| c[v]);
+            let all = [
+                normals[v].x,
+                normals[v].y,
+                normals[v].z,
+                uvs[v].x,
+                uvs[v].y,
+                c[0],
+                c[1],
+                c[2],
+                c[3],
+            ];
+            all.into_iter().take(count)
+        })
         .collect();
     let positions: Vec<u8> = indexed
         .positions
@@ -585,14 +617,112 @@ fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
         &indexed.indices,
         &adapter,
         &attributes,
-        &PEER_WEIGHTS,
-        5 * std::mem::size_of::<f32>(),
+        &PEER_WEIGHTS[..count],
+        count * std::mem::size_of::<f32>(),
         &vec![false; n],
         3 * triangles,
         f32::MAX,
         meshopt::SimplifyOptions::None,
         None,
     ))
+}
+
+/// A bumpy UV sphere (48 × 96 quads, UV seam) as a GLB: positions, normals, `TEXCOORD_0`,
+/// `TEXCOORD_1` (the same, halved), `COLOR_0` (RGBA bands around the sphere that cross its
+/// rows at an angle), a white material.
+fn procedural_glb() -> Vec<u8> {
+    let (rings, segments) = (48u32, 96u32);
+    let (mut positions, mut normals, mut uv0, mut uv1, mut colors) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for r in 0..=rings {
+        let v = r as f32 / rings as f32;
+        let phi = std::f32::consts::PI * v;
+        for s in 0..=segments {
+            let u = s as f32 / segments as f32;
+            let theta = std::f32::consts::TAU * u;
+            let n = Vec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin());
+            let bump = 1.0 + 0.04 * (5.0 * theta).sin() * (4.0 * phi).sin();
+            positions.push(n * bump);
+            normals.push(n);
+            uv0.push([u, v]);
+            uv1.push([u * 0.5, v * 0.5]);
+            let band = ((3.0 * theta + 6.0 * phi).sin() * 0.5 + 0.5).round();
+            colors.push([0.9, 0.25 + 0.6 * band, 0.2 + 0.5 * (1.0 - band), 1.0]);
+        }
+    }
+    let mut indices = Vec::new();
+    let cols = segments + 1;
+    for r in 0..rings {
+        for s in 0..segments {
+            let (a, b) = (r * cols + s, (r + 1) * cols + s);
+            indices.extend_from_slice(&[a, a + 1, b, a + 1, b + 1, b]);
+        }
+    }
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    let mut push = |bytes: Vec<u8>| {
+        let offset = bin.len();
+        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}));
+        bin.extend_from_slice(&bytes);
+        bin.resize(bin.len().next_multiple_of(4), 0);
+    };
+    let floats = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    push(floats(
+        &positions
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect::<Vec<_>>(),
+    ));
+    push(floats(
+        &normals
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect::<Vec<_>>(),
+    ));
+    push(floats(&uv0.concat()));
+    push(floats(&uv1.concat()));
+    push(floats(&colors.concat()));
+    push(indices.iter().flat_map(|i| i.to_le_bytes()).collect());
+    let n = positions.len();
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let document = json!({
+        "asset": {"version": "2.0", "generator": "bevy_aslod textured example"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+            "metallicFactor": 0.0, "roughnessFactor": 0.5}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1,
+            "TEXCOORD_0": 2, "TEXCOORD_1": 3, "COLOR_0": 4}, "indices": 5, "material": 0}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
+             "min": lo.to_array(), "max": hi.to_array()},
+            {"bufferView": 1, "componentType": 5126, "count": n, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": n, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5126, "count": n, "type": "VEC2"},
+            {"bufferView": 4, "componentType": 5126, "count": n, "type": "VEC4"},
+            {"bufferView": 5, "componentType": 5125, "count": indices.len(), "type": "SCALAR"},
+        ],
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    let mut text = serde_json::to_vec(&document).expect("json");
+    text.resize(text.len().next_multiple_of(4), b' ');
+    let total = 12 + 8 + text.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
 }
 
 /// PSNR (dB, over RGB; [`IDENTICAL_PSNR`] for identical images) and mean absolute difference
