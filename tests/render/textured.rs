@@ -2,7 +2,8 @@
 //! TANGENT attribute, so Bevy's glTF loader makes tangents) under a `MultiresScene`: at
 //! `FullDetail` it draws like plain Bevy, normal map and occlusion map included (without its
 //! tangents 1.6% of the pixels differ), and at 5% of its triangles it draws with every
-//! attribute present and finite, and lit and textured as the reference is.
+//! attribute present and finite, and lit and textured as the reference is. The same for a
+//! generated sphere with vertex colours and a second UV set.
 
 use super::example_run::{example_binary, require_vulkan};
 use std::path::Path;
@@ -13,12 +14,29 @@ fn a_textured_asset_draws_like_plain_bevy_at_full_detail() {
     if !require_vulkan("render") {
         return;
     }
+    check("textured", &[]);
+}
+
+/// Vertex colours and a second UV set (the example's generated sphere, colour bands across its
+/// rows) draw like plain Bevy too.
+#[test]
+fn vertex_colours_draw_like_plain_bevy_at_full_detail() {
+    if !require_vulkan("render") {
+        return;
+    }
+    check("textured-procedural", &["--procedural"]);
+}
+
+/// Runs the example on two views with `extra` arguments into a folder called `name`, and
+/// checks its report.
+fn check(name: &str, extra: &[&str]) {
     let binary = example_binary("textured");
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("textured");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     let output = Command::new(&binary)
         .args(["--views", "2", "--ratios", "0.05", "--no-peer", "--out"])
         .arg(&dir)
+        .args(extra)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .expect("run the textured example");
@@ -34,7 +52,7 @@ fn a_textured_asset_draws_like_plain_bevy_at_full_detail() {
         let varied = view["varied"].as_f64().expect("varied");
         assert!(
             varied > 0.05,
-            "the bottle is not in view ({varied:.3}); see {}",
+            "the asset is not in view ({varied:.3}); see {}",
             dir.display()
         );
         let full = &view["full_detail"];
@@ -48,8 +66,8 @@ fn a_textured_asset_draws_like_plain_bevy_at_full_detail() {
             dir.display()
         );
         // A level drawn with NaN normals or a missing attribute comes out unlit or
-        // untextured: its mean colour leaves the reference's (NaN normals: 105/255 off in
-        // red; the 5% level itself: about 10).
+        // untextured: its mean colour leaves the reference's (the bottle with NaN normals:
+        // 105/255 off in red; its 5% level itself: about 10).
         let mean = |v: &serde_json::Value| -> Vec<f64> {
             v.as_array()
                 .expect("rgb")
