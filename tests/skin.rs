@@ -683,6 +683,43 @@ fn blend_matches_the_naive_formula() {
     }
     assert!(four > 100, "the test covers four-influence vertices");
 
+    // With tangents: the same positions and normals, and each tangent turned by the same
+    // matrix as `skin_tangent` turns it, its handedness kept.
+    let tangents: Vec<glam::Vec4> = (0..n)
+        .map(|v| {
+            rng.vec3()
+                .normalize()
+                .extend(if v % 2 == 0 { 1.0 } else { -1.0 })
+        })
+        .collect();
+    let (mut tp, mut tn, mut tt) = (
+        vec![Vec3::ZERO; n],
+        vec![Vec3::ZERO; n],
+        vec![[0.0f32; 4]; n],
+    );
+    bevy_aslod::skin::blend_with_tangents(
+        &matrices,
+        &positions,
+        Some(&normals),
+        &tangents,
+        &inf,
+        &all,
+        &mut tp,
+        Some(&mut tn),
+        &mut tt,
+    );
+    assert_eq!((&tp, &tn), (&out_p, &out_n));
+    for v in 0..n {
+        let t = bevy_aslod::skin::skin_tangent(
+            &matrices,
+            tangents[v].truncate(),
+            inf.joints[v],
+            inf.weights[v],
+            false,
+        );
+        assert_eq!(tt[v], [t.x, t.y, t.z, tangents[v].w], "vertex {v}");
+    }
+
     // Without normals, positions are the same.
     let mut only_p = vec![Vec3::ZERO; n];
     blend(&matrices, &positions, None, &inf, &all, &mut only_p, None);

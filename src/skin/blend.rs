@@ -75,6 +75,12 @@ fn apply_point(c: &[Vec4; 4], p: Vec3) -> Vec3 {
     (c[0] * p.x + c[1] * p.y + c[2] * p.z + c[3]).truncate()
 }
 
+/// The blended upper 3x3 applied to a direction in the surface (a tangent), not normalised.
+#[inline(always)]
+fn apply_linear(c: &[Vec4; 4], v: Vec3) -> Vec3 {
+    (c[0] * v.x + c[1] * v.y + c[2] * v.z).truncate()
+}
+
 /// The inverse transpose of the blended upper 3x3 applied to a normal, as Bevy's skinning
 /// shader turns normals (`skin_normals`), up to a positive factor: its cofactor matrix
 /// (three cross products, no division), sign-corrected for a mirroring matrix. Not
@@ -149,8 +155,7 @@ pub fn skin_tangent(
     weights: [f32; MAX_INFLUENCES],
     rigid: bool,
 ) -> Vec3 {
-    let c = skin_matrix(matrices, joints, weights, rigid);
-    (c[0] * tangent.x + c[1] * tangent.y + c[2] * tangent.z).truncate()
+    apply_linear(&skin_matrix(matrices, joints, weights, rigid), tangent)
 }
 
 /// Linear blend skinning of the listed vertices only (sections 5.3 and 5.4: a region's cache
@@ -199,6 +204,7 @@ pub fn blend(
         vertices,
         out_positions,
         out_normals,
+        None,
     );
 }
 
@@ -230,6 +236,36 @@ pub fn blend_with_rigid(
         vertices,
         out_positions,
         out_normals,
+        None,
+    );
+}
+
+/// [`blend`] that also turns tangents (`xyz` by the blended matrix, as [`skin_tangent`];
+/// `w`, the handedness, kept) from `tangents` into `out_tangents`, from the same blended
+/// matrix as the vertex's position and normal. Tangents are written only where normals are
+/// (both normal arrays given) and both tangent arrays hold the vertex.
+#[allow(clippy::too_many_arguments)]
+pub fn blend_with_tangents(
+    matrices: &[Mat4],
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    tangents: &[Vec4],
+    influences: &Influences,
+    vertices: &[u32],
+    out_positions: &mut [Vec3],
+    out_normals: Option<&mut [Vec3]>,
+    out_tangents: &mut [[f32; 4]],
+) {
+    blend_impl(
+        matrices,
+        positions,
+        normals,
+        influences,
+        None,
+        vertices,
+        out_positions,
+        out_normals,
+        Some((tangents, out_tangents)),
     );
 }
 
@@ -244,6 +280,7 @@ fn blend_impl(
     vertices: &[u32],
     out_positions: &mut [Vec3],
     out_normals: Option<&mut [Vec3]>,
+    mut tangents: Option<(&[Vec4], &mut [[f32; 4]])>,
 ) {
     // Every array cut to one common length `n`: one `i < n` test per vertex then covers
     // every access (the optimiser drops the others).
@@ -280,6 +317,12 @@ fn blend_impl(
                 let c = skin_matrix(matrices, joints[i], weights[i], is_rigid(i));
                 out_positions[i] = apply_point(&c, positions[i]);
                 out_normals[i] = apply_normal(&c, normals[i]);
+                if let Some((from, to)) = &mut tangents
+                    && let (Some(t), Some(out)) = (from.get(i), to.get_mut(i))
+                {
+                    let xyz = apply_linear(&c, t.truncate());
+                    *out = [xyz.x, xyz.y, xyz.z, t.w];
+                }
             }
         }
         None => {

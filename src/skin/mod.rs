@@ -67,7 +67,9 @@ mod error;
 mod influences;
 mod weights;
 
-pub use blend::{blend, blend_with_rigid, skin_normal, skin_position, skin_tangent};
+pub use blend::{
+    blend, blend_with_rigid, blend_with_tangents, skin_normal, skin_position, skin_tangent,
+};
 pub use decompose::{SkinDecomposition, decompose};
 pub use error::SkinError;
 pub use influences::{Influences, WeightReport};

@@ -28,7 +28,7 @@ use super::tasks::par_chunks;
 use crate::bounds::Obb;
 use crate::mesh::IndexedMesh;
 use crate::regions::{Geomorphs, RegionCaches, RegionMesh};
-use crate::skin::{Influences, SkinRegionKind, blend, skin_tangent};
+use crate::skin::{Influences, SkinRegionKind, blend, blend_with_tangents};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::system::NonSendMarker;
 use bevy::mesh::VertexAttributeValues;
@@ -346,32 +346,29 @@ impl Job<'_> {
         };
         let positions: &mut [Vec3] = bytemuck::cast_slice_mut(&mut r.positions);
         let normals: &mut [Vec3] = bytemuck::cast_slice_mut(&mut r.normals);
-        blend(
-            self.matrices,
-            source_positions,
-            source_normals,
-            self.influences,
-            &r.written,
-            positions,
-            Some(&mut *normals),
-        );
-        if let Some(source) = &self.source.tangents {
-            // The blended matrix's upper 3x3 turns a tangent (the normal takes its inverse
-            // transpose), as Bevy's shader does; the shader normalises both.
-            let (joints, weights) = (&self.influences.joints, &self.influences.weights);
-            for &v in &r.written {
-                let v = v as usize;
-                let (Some(t), Some(out), Some(&j), Some(&w)) = (
-                    source.get(v),
-                    r.tangents.get_mut(v),
-                    joints.get(v),
-                    weights.get(v),
-                ) else {
-                    continue;
-                };
-                let xyz = skin_tangent(self.matrices, t.truncate(), j, w, false);
-                *out = xyz.extend(t.w).to_array();
-            }
+        // Tangents turn with the same blended matrix as their vertex (the normal takes its
+        // inverse transpose), as in Bevy's shader, which normalises both.
+        match &self.source.tangents {
+            Some(tangents) => blend_with_tangents(
+                self.matrices,
+                source_positions,
+                source_normals,
+                tangents,
+                self.influences,
+                &r.written,
+                positions,
+                Some(&mut *normals),
+                &mut r.tangents,
+            ),
+            None => blend(
+                self.matrices,
+                source_positions,
+                source_normals,
+                self.influences,
+                &r.written,
+                positions,
+                Some(&mut *normals),
+            ),
         }
         if let Some(to_local) = self.to_local {
             // Normals stay unnormalised, as `blend` leaves them: Bevy's vertex shader
