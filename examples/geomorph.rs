@@ -12,16 +12,11 @@
 #[path = "common/mod.rs"]
 mod common;
 
-use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-use bevy::time::TimeUpdateStrategy;
-use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, Geomorph, GeomorphMaterial, MultiresMesh, MultiresModel,
     PolygonBudget, RegionUploadStats,
@@ -34,7 +29,7 @@ use std::time::{Duration, Instant};
 
 /// The morph time.
 const T: f32 = 0.25;
-/// Frames per second of the scripted clock.
+/// Frames per second of the scripted clock (`common::offscreen_app` steps 1/60 s a frame).
 const FPS: f64 = 60.0;
 /// Image size: small, so lavapipe draws a frame quickly.
 const SIZE: (u32, u32) = (320, 180);
@@ -332,21 +327,9 @@ impl Cost {
 /// A headless app whose frames are drawn in `update` (no pipelined rendering), on a clock
 /// of exactly 1/60 s per frame.
 fn render_app() -> App {
-    let mut app = App::new();
-    let plugins = DefaultPlugins
-        .set(WindowPlugin {
-            primary_window: None,
-            exit_condition: ExitCondition::DontExit,
-            ..default()
-        })
-        .disable::<WinitPlugin>()
-        .disable::<PipelinedRenderingPlugin>();
-    app.add_plugins((plugins, ScheduleRunnerPlugin::run_once()))
-        .add_plugins(AslodPlugin::default().with_budget(HIGH))
-        .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)))
-        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
-            1.0 / FPS,
-        )));
+    let mut app = common::offscreen_app(None);
+    app.add_plugins(AslodPlugin::default().with_budget(HIGH))
+        .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)));
     app.finish();
     app.cleanup();
     app

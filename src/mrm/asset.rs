@@ -5,7 +5,7 @@ use super::progressive::{self, Counts, section};
 use super::{BakedMesh, BakedSkin, BuildInfo, FORMAT_VERSION, MrmError, MrmFile};
 use crate::bounds::Obb;
 use crate::multires::{BuildOptions, CollapseOperator};
-use crate::regions::{FrontEvent, Partition, Region, RegionMesh, subset};
+use crate::regions::{FrontEvent, Partition, Region, RegionMesh};
 use crate::skin::SkinRegionKind;
 use glam::{Mat3, Mat4, Vec3};
 
@@ -512,7 +512,7 @@ fn read_region(
     {
         return Err(rg.invalid(4 * k, "a vertex names one past the source's vertex table"));
     }
-    let vertices = subset(source, &global);
+    let vertices = source.subset(&global);
     let mesh = progressive::read_mesh(&sections, &r, vertices, &counts, narrow, has_view)?;
 
     let mut rl = Reader::new(section(&sections, b"LIST")?);

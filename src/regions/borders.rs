@@ -1,7 +1,6 @@
 //! The borders between regions: foreign corners, their representatives, and fin-prone
 //! triangles.
 
-use super::util::subset;
 use super::{FrontEvent, Region};
 use crate::mesh::{IndexedMesh, weld_positions};
 
@@ -199,7 +198,7 @@ pub(super) fn link_border(
         }
     }
     if !extra.is_empty() {
-        let added = subset(mesh, &extra);
+        let added = mesh.subset(&extra);
         region.mesh.append_vertices(&added);
         region.global.extend_from_slice(&extra);
     }

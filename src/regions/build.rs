@@ -2,7 +2,7 @@
 
 use super::bands::closed_band_cuts;
 use super::borders::{fin_prone, link_border};
-use super::util::{find, subset};
+use super::util::find;
 use super::{FrontEvent, Partition, Region, RegionError, RegionMesh, triangle_owner};
 use crate::executor::{Executor, Threads};
 use crate::mesh::{IndexedMesh, weld_positions};
@@ -231,7 +231,7 @@ fn build_region(
     for (i, &v) in global.iter().enumerate() {
         local.insert(v, i as u32);
     }
-    let mut sub = subset(mesh, &global);
+    let mut sub = mesh.subset(&global);
     sub.indices = owned
         .iter()
         .chain(context)

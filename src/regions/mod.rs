@@ -65,7 +65,6 @@ mod util;
 pub use cache::RegionCaches;
 pub use morph::{Geomorphs, VertexMorph};
 pub use partition::{GridPlane, Partition};
-pub(crate) use util::subset;
 
 use crate::mesh::MeshError;
 use crate::multires::ProgressiveMesh;

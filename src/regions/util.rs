@@ -1,7 +1,4 @@
-//! Helpers the partition, the build, the bands and the borders share: union-find, and the
-//! attributes of a subset of a mesh's vertices.
-
-use crate::mesh::IndexedMesh;
+//! Union-find, which the partition, the bands and the build share.
 
 /// Union-find over `parent` (each entry its parent, roots their own): the root of `x`, with
 /// path halving.
@@ -17,9 +14,4 @@ pub(super) fn find(parent: &mut [u32], mut x: u32) -> u32 {
 pub(super) fn unite(parent: &mut [u32], a: u32, b: u32) {
     let (ra, rb) = (find(parent, a), find(parent, b));
     parent[ra.max(rb) as usize] = ra.min(rb);
-}
-
-/// The attributes of `vertices`, in that order, with no triangles.
-pub(crate) fn subset(mesh: &IndexedMesh, vertices: &[u32]) -> IndexedMesh {
-    mesh.subset(vertices)
 }

@@ -210,47 +210,35 @@ pub fn add_further_attributes(mesh: &mut IndexedMesh) {
     let colors: Vec<[f32; 4]> = (0..n)
         .map(|i| [(i % 7) as f32 / 7.0, (i % 5) as f32 / 5.0, 0.5, 1.0])
         .collect();
-    let bytes = |format: AttributeFormat, f: &dyn Fn(usize, usize) -> u8| VertexAttribute {
-        name: String::new(),
-        id: 0,
-        format,
-        data: (0..n)
-            .flat_map(|i| (0..format.size()).map(move |k| (i, k)))
-            .map(|(i, k)| f(i, k))
-            .collect(),
-    };
-    let half = AttributeFormat {
-        scalar: Scalar::F16,
-        components: 2,
+    // Byte attributes: name, id, format, and byte `k` of vertex `i`.
+    let bytes = |name: &str, id: u64, scalar: Scalar, f: &dyn Fn(usize, usize) -> u8| {
+        let format = AttributeFormat {
+            scalar,
+            components: if scalar == Scalar::F16 { 2 } else { 4 },
+        };
+        VertexAttribute {
+            name: name.into(),
+            id,
+            format,
+            data: (0..n)
+                .flat_map(|i| (0..format.size()).map(move |k| f(i, k)))
+                .collect(),
+        }
     };
     // Finite half floats: exponent bits never all set.
-    let mut wind = bytes(half, &|i, k| {
+    let wind = bytes("Vertex_Wind", 988_540_917, Scalar::F16, &|i, k| {
         if k % 2 == 1 {
             (i % 60) as u8
         } else {
             (i * 7 + k) as u8
         }
     });
-    wind.name = "Vertex_Wind".into();
-    wind.id = 988_540_917;
-    let mut material = bytes(
-        AttributeFormat {
-            scalar: Scalar::U8,
-            components: 4,
-        },
-        &|i, k| (i * 13 + k) as u8,
-    );
-    material.name = "Vertex_MaterialIds".into();
-    material.id = 988_540_918;
-    let mut tint = bytes(
-        AttributeFormat {
-            scalar: Scalar::Bgra8,
-            components: 4,
-        },
-        &|i, k| (i * 3 + k * 50) as u8,
-    );
-    tint.name = "Vertex_Tint".into();
-    tint.id = 988_540_919;
+    let material = bytes("Vertex_MaterialIds", 988_540_918, Scalar::U8, &|i, k| {
+        (i * 13 + k) as u8
+    });
+    let tint = bytes("Vertex_Tint", 988_540_919, Scalar::Bgra8, &|i, k| {
+        (i * 3 + k * 50) as u8
+    });
     mesh.attributes = vec![
         VertexAttribute::from_f32("Vertex_Uv_1", UV_1_ID, &uv1),
         VertexAttribute::from_f32("Vertex_Color", COLOR_ID, &colors),

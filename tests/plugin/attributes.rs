@@ -140,6 +140,12 @@ fn check_model(
     checked
 }
 
+/// `source` in 6 clusters.
+fn clustered(source: &IndexedMesh) -> MultiresMesh {
+    let partition = Partition::clusters(source, 6).expect("clusters");
+    MultiresMesh::from_indexed(source, &partition).expect("builds")
+}
+
 /// An app with a camera, its clock at 1/60 s a frame, `asset` added.
 fn attribute_app(asset: MultiresMesh) -> (App, Handle<MultiresMesh>) {
     let mut app = app(1_000);
@@ -190,9 +196,7 @@ fn run_budgets(
 #[test]
 fn regions_draw_every_vertex_with_its_source_attributes() {
     let source = source();
-    let partition = Partition::clusters(&source, 6).expect("clusters");
-    let asset = MultiresMesh::from_indexed(&source, &partition).expect("builds");
-    let (mut app, handle) = attribute_app(asset);
+    let (mut app, handle) = attribute_app(clustered(&source));
     let model = app
         .world_mut()
         .spawn((MultiresModel(handle), Transform::default()))
@@ -203,9 +207,7 @@ fn regions_draw_every_vertex_with_its_source_attributes() {
 #[test]
 fn a_view_dependent_level_draws_every_vertex_with_its_source_attributes() {
     let source = source();
-    let partition = Partition::clusters(&source, 6).expect("clusters");
-    let asset = MultiresMesh::from_indexed(&source, &partition)
-        .expect("builds")
+    let asset = clustered(&source)
         .with_refinement(&source, &BuildOptions::default())
         .expect("refinement data");
     let (mut app, handle) = attribute_app(asset);
@@ -233,9 +235,7 @@ fn a_view_dependent_level_draws_every_vertex_with_its_source_attributes() {
 #[test]
 fn geomorphs_at_rest_draw_every_vertex_with_its_source_attributes() {
     let source = source();
-    let partition = Partition::clusters(&source, 6).expect("clusters");
-    let asset = MultiresMesh::from_indexed(&source, &partition).expect("builds");
-    let (mut app, handle) = attribute_app(asset);
+    let (mut app, handle) = attribute_app(clustered(&source));
     let model = app
         .world_mut()
         .spawn((MultiresModel(handle), Geomorph(0.1), Transform::default()))
