@@ -294,12 +294,10 @@ struct Builder<'a> {
     /// Per position, the positions of other connected parts closer than
     /// [`BuildOptions::pair_distance`] (the topology compromise); empty when it is off.
     pairs: Vec<Vec<u32>>,
-    /// Per attribute vertex, its weighted attributes (normal, UV, colour, each times the
-    /// square root of its weight), `attribute_stride` values each; empty when no term is on.
+    /// Per attribute vertex, its weighted attributes (normal, UV, colour, each times its
+    /// weight), `attribute_stride` values each; empty when no term is on.
     attributes: Vec<f64>,
     attribute_stride: usize,
-    /// The diagonal squared: attribute errors in the units of costs.
-    attribute_scale: f64,
     /// Per attribute vertex, its attribute quadric (empty when no term is on).
     attribute_quadrics: AttributeQuadrics,
 }
@@ -507,7 +505,6 @@ impl<'a> Builder<'a> {
             pairs: Vec::new(),
             attributes: Vec::new(),
             attribute_stride: 0,
-            attribute_scale: diagonal * diagonal,
             attribute_quadrics: AttributeQuadrics::default(),
         };
         (builder.attributes, builder.attribute_stride) = attribute_table(mesh, options);
@@ -732,10 +729,12 @@ impl<'a> Builder<'a> {
             self.attribute_quadrics = AttributeQuadrics::new(self.mesh.positions.len(), s);
             for tri in &self.tris {
                 let points = tri.map(|v| self.points[self.pos[v as usize] as usize]);
-                let weight = (points[1] - points[0])
-                    .cross(points[2] - points[0])
-                    .length()
-                    .sqrt();
+                // Area weights: an attribute error integrated over the surface, in the units
+                // of position errors (meshoptimizer's choice).
+                let weight = 0.5
+                    * (points[1] - points[0])
+                        .cross(points[2] - points[0])
+                        .length();
                 let values = tri.map(|v| &self.attributes[v as usize * s..(v as usize + 1) * s]);
                 self.attribute_quadrics
                     .add_triangle(*tri, points, values, weight);
@@ -1366,7 +1365,7 @@ impl<'a> Builder<'a> {
             let values = &self.attributes[b as usize * s..(b as usize + 1) * s];
             error += self.attribute_quadrics.error(a, pw, values);
         }
-        error * self.attribute_scale
+        error
     }
 
     /// The far edge of every triangle around `u`, in winding order, into `out` (cleared).
@@ -1988,14 +1987,14 @@ pub(crate) fn build(
 }
 
 /// Per attribute vertex of `mesh`, its attributes the collapse cost weighs (normals, the
-/// first UV set, colours, each times the square root of its
-/// [weight](BuildOptions::uv_weight)), and how many values each has (0: no term is on).
+/// first UV set, colours, each times its [weight](BuildOptions::uv_weight)), and how many
+/// values each has (0: no term is on).
 fn attribute_table(mesh: &IndexedMesh, options: &BuildOptions) -> (Vec<f64>, usize) {
     let colors = mesh
         .attribute(crate::mesh::COLOR_ID)
         .and_then(|c| c.to_f32::<4>());
     let weight =
-        |w: f64, present: bool| (present && non_negative(w) > 0.0).then(|| non_negative(w).sqrt());
+        |w: f64, present: bool| (present && non_negative(w) > 0.0).then(|| non_negative(w));
     let (wn, wu, wc) = (
         weight(options.normal_weight, mesh.normals.is_some()),
         weight(options.uv_weight, mesh.uvs.is_some()),

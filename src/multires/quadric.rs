@@ -177,8 +177,10 @@ impl AttributeQuadrics {
         }
     }
 
-    /// The mean attribute error of giving vertex `v`'s triangles the values `a` at `p`
-    /// (`0` when nothing was merged into it).
+    /// The attribute error of giving vertex `v`'s triangles the values `a` at `p`: the
+    /// squared differences integrated over those triangles (each weighs its area), so an
+    /// attribute off by 1 over a patch of size d costs what moving it by d does in a position
+    /// quadric (meshoptimizer's units; `0` when nothing was merged into it).
     pub(crate) fn error(&self, v: u32, p: DVec3, a: &[f64]) -> f64 {
         let q = &self.positions[v as usize];
         if q.weight <= 0.0 {
@@ -194,7 +196,7 @@ impl AttributeQuadrics {
             r += a * a * q.weight - 2.0 * a * (g[0] * p.x + g[1] * p.y + g[2] * p.z + g[3]);
         }
         // Rounding can make a sum of squares slightly negative.
-        r.max(0.0) / q.weight
+        r.max(0.0)
     }
 
     /// Merges vertex `from`'s quadric into `into`'s.
@@ -241,18 +243,18 @@ mod tests {
     #[test]
     fn attribute_quadric_measures_interpolation_error() {
         // A triangle in z = 0 whose attribute is x + 2y: exact values cost nothing anywhere in
-        // the plane; a value off by 0.5 costs 0.25.
+        // the plane; a value off by 0.5 costs 0.25 times the weight.
         let points = [DVec3::ZERO, DVec3::X, DVec3::Y];
         let values = [[0.0], [1.0], [2.0]];
         let mut q = AttributeQuadrics::new(3, 1);
         q.add_triangle([0, 1, 2], points, [&values[0], &values[1], &values[2]], 2.0);
         let p = DVec3::new(0.3, 0.6, 0.0);
         assert!(q.error(0, p, &[1.5]) < 1e-12);
-        assert!((q.error(1, p, &[2.0]) - 0.25).abs() < 1e-12);
+        assert!((q.error(1, p, &[2.0]) - 0.5).abs() < 1e-12);
         q.merge(0, 1);
         assert!(
-            (q.error(1, p, &[2.0]) - 0.25).abs() < 1e-12,
-            "a mean, whatever the weight"
+            (q.error(1, p, &[2.0]) - 1.0).abs() < 1e-12,
+            "integrated: merged triangles add up"
         );
     }
 }
