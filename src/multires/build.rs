@@ -395,6 +395,10 @@ struct Scratch {
     /// Attribute-vertex mapping (old -> new) of the collapse being checked.
     map: Vec<(u32, u32)>,
     neighbors: Vec<u32>,
+    /// The seam neighbours of the position being ranked (see
+    /// [`Builder::seam_neighbors_into`]).
+    seams: Vec<u32>,
+    corners: Vec<(u32, u32, u32)>,
     /// `mark[p] == stamp` marks position `p` in the current set, without clearing.
     mark: Vec<u32>,
     stamp: u32,
@@ -916,6 +920,31 @@ impl<'a> Builder<'a> {
         false
     }
 
+    /// The neighbours `x` of `u` whose edge `u-x` is a [seam edge](Self::is_seam_edge), sorted,
+    /// into `out` (cleared; empty when the mesh has no seams): one pass over `u`'s triangles,
+    /// whose corners go through `corners` (a buffer).
+    fn seam_neighbors_into(&self, u: u32, out: &mut Vec<u32>, corners: &mut Vec<(u32, u32, u32)>) {
+        out.clear();
+        corners.clear();
+        if !self.has_seams {
+            return;
+        }
+        for &t in &self.adj[u as usize] {
+            let tri = self.tris[t as usize];
+            if let Some(k) = tri.iter().position(|&v| self.pos[v as usize] == u) {
+                for j in [(k + 1) % 3, (k + 2) % 3] {
+                    corners.push((self.pos[tri[j] as usize], tri[k], tri[j]));
+                }
+            }
+        }
+        corners.sort_unstable();
+        for pair in corners.windows(2) {
+            if pair[0].0 == pair[1].0 && pair[0] != pair[1] && out.last() != Some(&pair[0].0) {
+                out.push(pair[0].0);
+            }
+        }
+    }
+
     /// True when any edge at `u` is a seam edge.
     fn touches_seam(&self, u: u32, scratch: &mut Scratch) -> bool {
         let mut neighbors = std::mem::take(&mut scratch.neighbors);
@@ -1205,8 +1234,18 @@ impl<'a> Builder<'a> {
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
         let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
+        // The seam rule of `check_collapse`, which only u's triangles decide: a vertex on a
+        // seam never goes off it, so those candidates are left out here rather than chosen
+        // (their attribute error counts one side only) and refused at validation.
+        let mut seams = std::mem::take(&mut self.scratch.seams);
+        let mut corners = std::mem::take(&mut self.scratch.corners);
+        self.seam_neighbors_into(u, &mut seams, &mut corners);
+        self.scratch.corners = corners;
         for &w in &nu {
             if front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None) {
+                continue;
+            }
+            if !seams.is_empty() && seams.binary_search(&w).is_err() {
                 continue;
             }
             if let Some(e) = self.quadric_cost(u, w) {
@@ -1223,9 +1262,11 @@ impl<'a> Builder<'a> {
                 }
             }
         }
-        // The cheapest quadric error first. The local error only adds, so a candidate whose
-        // quadric error alone levels above the best cost so far cannot win: it keeps that as a
-        // lower bound (all a runner-up needs; without a local weight it is the cost).
+        // The cheapest quadric error first. The attribute and local errors only add, so a
+        // candidate whose quadric error alone, or with its attribute error, levels above the
+        // best cost so far cannot win: it keeps that as a lower bound (all a runner-up needs;
+        // without a local weight the second is the cost). The local error, the dearest, comes
+        // last.
         let first = (0..candidates.len())
             .min_by(|&i, &j| candidates[i].0.total_cmp(&candidates[j].0))
             .unwrap_or(0);
@@ -1236,14 +1277,21 @@ impl<'a> Builder<'a> {
             candidates[i].0 = if !validate && self.level(bound) > best {
                 bound
             } else {
-                let cost = self.cost(u, w, q, &fan, &wedges);
-                best = best.min(self.level(cost));
-                cost
+                let q = q + self.attribute_error(w, &wedges);
+                let bound = settle(q);
+                if !validate && self.local_weight > 0.0 && self.level(bound) > best {
+                    bound
+                } else {
+                    let cost = self.cost(u, w, q, &fan);
+                    best = best.min(self.level(cost));
+                    cost
+                }
             };
         }
         self.scratch.neighbors = nu;
         self.scratch.fan = fan;
         self.scratch.wedges = wedges;
+        self.scratch.seams = seams;
         let chosen = if validate {
             candidates.sort_unstable_by(|a, b| self.order(*a, *b));
             candidates
@@ -1301,23 +1349,16 @@ impl<'a> Builder<'a> {
         settle(quadric + local)
     }
 
-    /// The cost of collapsing `u` onto `w`, whose quadric error is `quadric`: that plus
+    /// The cost of collapsing `u` onto `w`, whose quadric and
+    /// [attribute](Self::attribute_error) errors sum to `errors`: that plus
     /// [`local_weight`](BuildOptions::local_weight) times the
     /// [`local_error`](Self::local_error) over `u`'s `fan`, [`settle`]d.
     #[inline]
-    fn cost(
-        &self,
-        u: u32,
-        w: u32,
-        quadric: f64,
-        fan: &[(u32, u32, DVec3, DVec3)],
-        wedges: &[(u32, u32, u32)],
-    ) -> f64 {
-        let attributes = self.attribute_error(w, wedges);
+    fn cost(&self, u: u32, w: u32, errors: f64, fan: &[(u32, u32, DVec3, DVec3)]) -> f64 {
         if self.local_weight > 0.0 {
-            settle(quadric + self.local_weight * self.local_error(u, w, fan) + attributes)
+            settle(errors + self.local_weight * self.local_error(u, w, fan))
         } else {
-            settle(quadric + attributes)
+            settle(errors)
         }
     }
 
@@ -1645,7 +1686,8 @@ impl<'a> Builder<'a> {
                 .filter(|c| c.1 != chosen)
                 .map(|&(_, y)| {
                     let q = self.quadric_cost(x, y).expect("a candidate is allowed");
-                    self.level(self.cost(x, y, q, &fan, &wedges))
+                    let q = q + self.attribute_error(y, &wedges);
+                    self.level(self.cost(x, y, q, &fan))
                 })
                 .fold(f64::INFINITY, f64::min);
             assert!(
@@ -1765,7 +1807,8 @@ impl<'a> Builder<'a> {
             }
             let mut wedges = Vec::new();
             self.wedges_into(x, &mut wedges);
-            eligible.push((self.cost(x, w, q, &fan, &wedges), x));
+            let q = q + self.attribute_error(w, &wedges);
+            eligible.push((self.cost(x, w, q, &fan), x));
         }
         self.scratch.fan = fan;
         // The cheaper apex first; the other when the cheaper one may not go.
