@@ -1613,9 +1613,10 @@ impl<'a> Builder<'a> {
     /// and an unvalidated rank resets it), a vertex out of the queue, one whose entry may be
     /// stale (pinched off an earlier collapse's ring, so not re-ranked then; both are
     /// `full_rank_due`), one on or next to a front (the front rule looks at the
-    /// neighbours' triangles), and, with a [`local_weight`](BuildOptions::local_weight) or
-    /// attribute terms, one that was next to `u` (its fan changed, and with it every local
-    /// error and which attribute vertex takes each of its places).
+    /// neighbours' triangles), and, with a [`local_weight`](BuildOptions::local_weight),
+    /// attribute terms or seams, one that was next to `u` (its fan changed, and with it every
+    /// local error, which attribute vertex takes each of its places and which of its edges
+    /// are seams).
     fn rerank(&mut self, x: u32, u: u32, w: u32) {
         let xi = x as usize;
         let moved = self.moved_ring.contains(&x);
@@ -1623,10 +1624,12 @@ impl<'a> Builder<'a> {
         let front = !self.anchor.is_empty()
             && (self.touches_anchor(x, None)
                 || (moved && (self.anchor[u as usize] || self.anchor[w as usize])));
-        // The local error looks at x's triangles, which a vertex next to u no longer has, and
-        // the attribute error at which attribute vertex of a neighbour takes each of x's
-        // places, which the triangles u gave w change.
-        let fan_changed = moved && (self.local_weight > 0.0 || self.attribute_stride > 0);
+        // The local error looks at x's triangles, which a vertex next to u no longer has; the
+        // attribute error at which attribute vertex of a neighbour takes each of x's places,
+        // and the seam rule at which of x's edges are seams: the triangles u gave w change
+        // both.
+        let fan_changed =
+            moved && (self.local_weight > 0.0 || self.attribute_stride > 0 || self.has_seams);
         if self.full_rank_due[xi] || front || fan_changed || !self.heap.contains(x) {
             self.rank(x, false, None);
             return;
@@ -1648,9 +1651,9 @@ impl<'a> Builder<'a> {
             self.rank(x, false, None);
             return;
         }
-        // Not reached with a local weight or attribute terms: x's fan changed, so it was
-        // ranked in full above.
-        debug_assert!(self.local_weight == 0.0 && self.attribute_stride == 0);
+        // Not reached with a local weight, attribute terms or seams: x's fan changed, so it
+        // was ranked in full above.
+        debug_assert!(self.local_weight == 0.0 && self.attribute_stride == 0 && !self.has_seams);
         let Some(cost) = self.quadric_cost(x, w).map(settle) else {
             return;
         };

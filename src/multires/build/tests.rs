@@ -186,7 +186,7 @@ fn costs_scale_the_quadric_error_and_table_errors_do_not() {
         };
         let mean = builder.quadrics[u as usize].error(builder.points[w as usize]);
         let local = options.local_weight * builder.local_error(u, w, &fan);
-        let cost = builder.cost(u, w, scaled, &fan, &[]);
+        let cost = builder.cost(u, w, scaled, &fan);
         assert_eq!(builder.table_error(u, w, cost), settle(mean + local));
         let weight = builder.quadrics[u as usize].weight();
         assert!((scaled - mean * weight / builder.mean_weight).abs() <= 1e-12 * scaled.abs());
