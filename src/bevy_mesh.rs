@@ -172,7 +172,7 @@ fn attribute_id(attribute: &MeshVertexAttribute) -> u64 {
 /// The Bevy attribute of a further attribute: its name (interned: Bevy names attributes with
 /// `&'static str`, so each distinct name is kept once for the life of the process), id and
 /// format.
-fn bevy_attribute(a: &VertexAttribute) -> MeshVertexAttribute {
+pub(crate) fn bevy_attribute(a: &VertexAttribute) -> MeshVertexAttribute {
     static NAMES: Mutex<Option<HashMap<String, &'static str>>> = Mutex::new(None);
     let mut names = NAMES.lock().unwrap_or_else(PoisonError::into_inner);
     let name = *names

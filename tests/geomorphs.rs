@@ -629,3 +629,143 @@ fn a_gpu_copy_of_variable_morphs_shows_what_the_cpu_does() {
         }
     }
 }
+
+/// A mesh whose further attributes follow its positions: UVs `(x, z)`, an `f32` attribute
+/// equal to the position, and tangents along the position (handedness alternating by
+/// vertex). Interpolated as geomorphs interpolate them, such attributes stay what the
+/// morphing positions say, at every time.
+fn with_position_attributes(mut mesh: IndexedMesh) -> IndexedMesh {
+    use bevy_aslod::mesh::VertexAttribute;
+    let p = &mesh.positions;
+    mesh.uvs = Some(p.iter().map(|q| glam::Vec2::new(q.x, q.z)).collect());
+    mesh.tangents = Some(
+        p.iter()
+            .enumerate()
+            .map(|(v, q)| q.normalize().extend(if v % 2 == 0 { 1.0 } else { -1.0 }))
+            .collect(),
+    );
+    let record: Vec<[f32; 3]> = p.iter().map(|q| q.to_array()).collect();
+    mesh.attributes = vec![VertexAttribute::from_f32(
+        "Vertex_Place",
+        988_540_917,
+        &record,
+    )];
+    mesh
+}
+
+/// Checks that the attributes `values` (`groups`' per vertex) of `vertices` agree with their
+/// shown `positions` where `drawn` says a triangle uses the vertex, and that tangents are
+/// unit with their own handedness.
+fn assert_attributes_follow(
+    groups: &[bevy_aslod::regions::MorphGroup],
+    values: &[f32],
+    (vertices, drawn): (&[u32], impl Fn(usize) -> bool),
+    positions: &[Vec3],
+    at: &str,
+) {
+    use bevy_aslod::regions::MorphKind;
+    let stride = groups.iter().map(|g| g.len).sum::<usize>();
+    assert_eq!(groups.len(), 3, "{at}: UVs, tangents and the f32 attribute");
+    assert_eq!(values.len(), vertices.len() * stride, "{at}");
+    for (i, ((&g, p), record)) in vertices
+        .iter()
+        .zip(positions)
+        .zip(values.chunks_exact(stride))
+        .enumerate()
+    {
+        if !drawn(i) {
+            continue;
+        }
+        for group in groups {
+            let v = &record[group.offset..group.offset + group.len];
+            let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * (1.0 + b.abs());
+            match &group.kind {
+                MorphKind::Uv => assert!(
+                    close(v[0], p.x) && close(v[1], p.z),
+                    "{at}: vertex {g}'s UV {v:?} at {p}"
+                ),
+                MorphKind::Attribute(a) => {
+                    assert_eq!(a.name, "Vertex_Place");
+                    assert!(
+                        (0..3).all(|k| close(v[k], p[k])),
+                        "{at}: vertex {g}'s attribute {v:?} at {p}"
+                    );
+                }
+                MorphKind::Tangent => {
+                    let length = Vec3::new(v[0], v[1], v[2]).length();
+                    assert!((length - 1.0).abs() < 1e-4, "{at}: tangent {v:?}");
+                    let own = if g % 2 == 0 { 1.0 } else { -1.0 };
+                    assert_eq!(v[3], own, "{at}: vertex {g}'s handedness");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn morphing_vertices_carry_their_attributes_along() {
+    // One region: a vertex on a border between regions can move with its neighbour's
+    // collapse while its own region keeps it, and so its own attributes.
+    let mesh = with_position_attributes(sphere(12, 16, &[0.0, 0.03], true));
+    let rm = regions(&mesh, 1);
+    let mut rng = Rng(0xA77E);
+    let mut caches = RegionCaches::new(&rm);
+    let mut morphs = Geomorphs::new(&rm, T);
+    let groups = morphs.attribute_groups().to_vec();
+    let (mut positions, mut values, mut indices) = (Vec::new(), Vec::new(), Vec::new());
+    let mut now = 0.0f32;
+    let mut moved = false;
+    for round in 0..30 {
+        for r in 0..rm.regions().len() {
+            let count = (rng.unit() * rm.regions()[r].max_triangles() as f32) as usize;
+            morphs.set_triangle_count(&rm, &mut caches, r, count, now);
+        }
+        now += rng.unit() * 0.2;
+        morphs.update(&rm, &mut caches, now);
+        moved |= morphs.is_morphing();
+        for r in 0..rm.regions().len() {
+            morphs.write_positions(&rm, r, now, &mut positions);
+            morphs.write_attributes(&rm, r, Some(now), &mut values);
+            let vertices = rm.regions()[r].global_vertices();
+            caches.write_global_indices(&rm, r, &mut indices);
+            let drawn = |i: usize| indices.contains(&vertices[i]);
+            let at = format!("round {round}, region {r}");
+            assert_attributes_follow(&groups, &values, (vertices, drawn), &positions, &at);
+            // At rest, every vertex shows its own.
+            morphs.write_attributes(&rm, r, None, &mut values);
+            let own: Vec<Vec3> = vertices
+                .iter()
+                .map(|&g| mesh.positions[g as usize])
+                .collect();
+            assert_attributes_follow(&groups, &values, (vertices, |_| true), &own, &at);
+        }
+    }
+    assert!(moved, "the rounds morphed");
+}
+
+#[test]
+fn variable_levels_carry_their_attributes_along() {
+    let mesh = with_position_attributes(sphere(16, 24, &[0.0, 0.04, -0.02, 0.01], true));
+    let vm = variable(&mesh);
+    let mut target = VariableCache::new(&vm);
+    let mut morphs = VariableGeomorphs::new(&vm, &target, T);
+    let groups = morphs.attribute_groups().to_vec();
+    let n = vm.mesh().vertices().positions.len() as u32;
+    let vertices: Vec<u32> = (0..n).collect();
+    let (mut positions, mut values) = (Vec::new(), Vec::new());
+    let mut rng = Rng(0x5EED);
+    let mut now = 0.0f32;
+    let mut moved = false;
+    for request in 0..40 {
+        now += rng.unit() * 0.2;
+        random_target(&vm, &mesh, &mut target, &mut rng);
+        morphs.follow(&vm, &target, usize::MAX, now).unwrap();
+        moved |= morphs.is_morphing();
+        morphs.write_positions(now, &mut positions);
+        morphs.write_attributes(Some(now), &mut values);
+        let at = format!("request {request}");
+        let drawn = |i: usize| morphs.shown().indices().contains(&(i as u32));
+        assert_attributes_follow(&groups, &values, (&vertices, drawn), &positions, &at);
+    }
+    assert!(moved, "the requests morphed");
+}

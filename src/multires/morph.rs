@@ -1,14 +1,16 @@
 //! Vertex motion under geomorphs, shared by region levels
 //! ([`Geomorphs`](crate::regions::Geomorphs)) and variable-resolution levels
 //! ([`VariableGeomorphs`](crate::refine::VariableGeomorphs)): which collapse moves each
-//! position where, and the positions in motion with their normals.
+//! position where, and the positions in motion with their normals and further attributes
+//! (UVs, tangents, `f32` attributes: [`MorphAttributes`]).
 //!
 //! A level is a set of performed collapses, given to the functions here as `done(step)`:
 //! a prefix of a region's sequence, or any set closed under a variable mesh's dependencies.
 
 use super::ProgressiveMesh;
+use crate::mesh::{IndexedMesh, Scalar, VertexAttribute};
 use crate::util::{Buckets, buckets};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
@@ -41,6 +43,142 @@ struct Morph {
 struct NormalMorph {
     from: Vec3,
     to: Vec3,
+}
+
+/// The further attributes of one vertex in motion: the values it was shown with when its
+/// morph started, toward vertex `to`'s own (its own, or its representative's).
+#[derive(Clone, Debug, PartialEq)]
+struct AttributeMorph {
+    from: Box<[f32]>,
+    to: u32,
+}
+
+/// What a group of a geomorph's further attribute values is, and so how it is interpolated
+/// (see [`Geomorphs::write_attributes`](crate::regions::Geomorphs::write_attributes)).
+#[derive(Clone, Debug, PartialEq)]
+pub enum MorphKind {
+    /// The first UV set (two values), interpolated.
+    Uv,
+    /// Tangents (four values): the direction interpolated and normalised, the handedness
+    /// (w) the vertex's own.
+    Tangent,
+    /// A further attribute of `f32` components (its name, id and format; no data),
+    /// interpolated.
+    Attribute(VertexAttribute),
+}
+
+/// One attribute among the further attribute values a geomorph writes per vertex (see
+/// [`Geomorphs::write_attributes`](crate::regions::Geomorphs::write_attributes)).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MorphGroup {
+    /// Which attribute, and how it is interpolated.
+    pub kind: MorphKind,
+    /// Its first value among a vertex's.
+    pub offset: usize,
+    /// How many values it has.
+    pub len: usize,
+}
+
+/// The attributes besides positions and normals that geomorphs interpolate, as `f32`s per
+/// vertex: the first UV set, tangents, and every further attribute of `f32` components.
+/// Others (integers, normalised and half floats) are not interpolated: a vertex in motion
+/// shows its own.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct MorphAttributes {
+    pub(crate) groups: Vec<MorphGroup>,
+    /// Values per vertex.
+    pub(crate) stride: usize,
+    values: Vec<f32>,
+}
+
+impl MorphAttributes {
+    /// The attributes of `mesh` that geomorphs interpolate; `None` when it has none.
+    pub(crate) fn of(mesh: &IndexedMesh) -> Option<Self> {
+        let n = mesh.positions.len();
+        // Per group, where its values come from: the UVs, the tangents, or a further
+        // attribute (its index).
+        let mut groups = Vec::new();
+        let mut sources = Vec::new();
+        let mut stride = 0;
+        let mut add = |kind, len, source: Option<usize>| {
+            groups.push(MorphGroup {
+                kind,
+                offset: stride,
+                len,
+            });
+            sources.push(source);
+            stride += len;
+        };
+        let uvs = mesh.uvs.as_ref().filter(|u| u.len() == n);
+        let tangents = mesh.tangents.as_ref().filter(|t| t.len() == n);
+        if uvs.is_some() {
+            add(MorphKind::Uv, 2, None);
+        }
+        if tangents.is_some() {
+            add(MorphKind::Tangent, 4, None);
+        }
+        for (k, a) in mesh.attributes.iter().enumerate() {
+            let len = usize::from(a.format.components);
+            if a.format.scalar == Scalar::F32 && a.data.len() == n * 4 * len {
+                add(MorphKind::Attribute(a.without_data()), len, Some(k));
+            }
+        }
+        if stride == 0 {
+            return None;
+        }
+        let mut values = Vec::with_capacity(n * stride);
+        for v in 0..n {
+            for (group, source) in groups.iter().zip(&sources) {
+                match (&group.kind, source) {
+                    (MorphKind::Uv, _) => values.extend(uvs.map_or([0.0; 2], |u| u[v].to_array())),
+                    (MorphKind::Tangent, _) => {
+                        values.extend(tangents.map_or([0.0; 4], |t| t[v].to_array()));
+                    }
+                    (MorphKind::Attribute(_), Some(k)) => {
+                        let record =
+                            &mesh.attributes[*k].data[v * 4 * group.len..(v + 1) * 4 * group.len];
+                        values.extend(
+                            record
+                                .chunks_exact(4)
+                                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+                        );
+                    }
+                    (MorphKind::Attribute(_), None) => {}
+                }
+            }
+        }
+        Some(Self {
+            groups,
+            stride,
+            values,
+        })
+    }
+
+    /// Vertex `g`'s own values.
+    fn vertex(&self, g: u32) -> &[f32] {
+        &self.values[g as usize * self.stride..(g as usize + 1) * self.stride]
+    }
+
+    /// The values a vertex whose own are `own` shows at `t` (`0.0..=1.0`) of a morph from
+    /// `from` to `to`, appended to `out`.
+    fn interpolate(&self, from: &[f32], to: &[f32], own: &[f32], t: f32, out: &mut Vec<f32>) {
+        for group in &self.groups {
+            let range = group.offset..group.offset + group.len;
+            let (from, to, own) = (&from[range.clone()], &to[range.clone()], &own[range]);
+            if t >= 1.0 {
+                out.extend_from_slice(to);
+            } else {
+                out.extend(from.iter().zip(to).map(|(&a, &b)| a + (b - a) * t));
+            }
+            if group.kind == MorphKind::Tangent {
+                let at = out.len() - 4;
+                let to_dir = Vec3A::new(to[0], to[1], to[2]);
+                let dir = Vec3A::new(out[at], out[at + 1], out[at + 2]).normalize_or(to_dir);
+                out[at..at + 3].copy_from_slice(&dir.to_array());
+                out[at + 3] = own[3];
+            }
+        }
+    }
 }
 
 /// One vertex's morph as a vertex shader interpolates it: shown at `from + (to - from) * t`
@@ -82,9 +220,24 @@ pub(crate) struct MorphTables {
     region_of: Vec<u32>,
     positions: Vec<Vec3>,
     normals: Option<Vec<Vec3>>,
+    /// The further attributes morphs interpolate ([`with_attributes`](Self::with_attributes)).
+    attributes: Option<MorphAttributes>,
 }
 
 impl MorphTables {
+    /// The tables, interpolating the further attributes of `mesh` (the mesh whose vertices
+    /// they were made for) too.
+    pub(crate) fn with_attributes(mut self, mesh: &IndexedMesh) -> Self {
+        self.attributes =
+            MorphAttributes::of(mesh).filter(|a| a.values.len() / a.stride == self.positions.len());
+        self
+    }
+
+    /// The further attributes morphs interpolate, when the mesh has any.
+    pub(crate) fn attributes(&self) -> Option<&MorphAttributes> {
+        self.attributes.as_ref()
+    }
+
     /// The tables of a mesh whose vertices (`positions`, `normals`) are split among
     /// `sequences`: each a progressive mesh and the mesh vertex of each of its vertices
     /// (`None`: the same numbers). `region_of` gives each vertex's sequence.
@@ -99,9 +252,10 @@ impl MorphTables {
         let copies = buckets(&position_of, n);
         let mut parent = vec![(u32::MAX, u32::MAX); n];
         let mut vertex_parent = vec![(u32::MAX, u32::MAX); n];
+        let mut driver = vec![u32::MAX; n];
         let mut removed_at = Vec::with_capacity(sequences.len());
         let mut counts = Vec::with_capacity(sequences.len());
-        for (pm, global) in sequences {
+        for (seq, (pm, global)) in sequences.enumerate() {
             let global = |v: u32| global.map_or(v, |g| g[v as usize]);
             let mut at: Vec<Vec<u32>> = vec![Vec::new(); pm.records.step_count()];
             for (step, old, new) in pm.records.step_pairs() {
@@ -112,10 +266,17 @@ impl MorphTables {
                 if p == q {
                     continue;
                 }
-                vertex_parent[g as usize] = (step as u32, to);
                 if parent[p as usize].0 == u32::MAX {
                     parent[p as usize] = (step as u32, q);
+                    driver[p as usize] = seq as u32;
                     at[step].push(p);
+                }
+                // A position moves with the first sequence that moves it, whose steps then
+                // drive its morph; a vertex that sequences share (on a border) takes its
+                // attributes from that sequence's records only (another's steps mean
+                // nothing to that sequence's levels).
+                if driver[p as usize] == seq as u32 && vertex_parent[g as usize].0 == u32::MAX {
+                    vertex_parent[g as usize] = (step as u32, to);
                 }
             }
             removed_at.push(at);
@@ -131,6 +292,7 @@ impl MorphTables {
             region_of,
             positions,
             normals,
+            attributes: None,
         }
     }
 
@@ -198,6 +360,7 @@ pub(crate) struct Motion {
     pub(crate) tables: Arc<MorphTables>,
     morphs: HashMap<u32, Morph, VertexHash>,
     normal_morphs: HashMap<u32, NormalMorph, VertexHash>,
+    attribute_morphs: HashMap<u32, AttributeMorph, VertexHash>,
     /// Morphs toward their own place by end time (as `f32` bits, which order non-negative
     /// times), to end them when due; an entry whose morph restarted since is skipped.
     ends: BinaryHeap<Reverse<(u32, u32)>>,
@@ -218,6 +381,7 @@ impl Motion {
             tables,
             morphs: HashMap::default(),
             normal_morphs: HashMap::default(),
+            attribute_morphs: HashMap::default(),
             ends: BinaryHeap::new(),
             moving: vec![0; sequences],
             restarted: Vec::new(),
@@ -260,6 +424,10 @@ impl Motion {
                 )
             })
             .collect();
+        let attributes = self.attribute_morphs_of(p, |g, motion| {
+            let rep = motion.tables.vertex_representative(g, shown);
+            (motion.shown_attributes(rep, now), g)
+        });
         let morph = Morph {
             from: self.position_of_p(from, now),
             to: self.tables.positions[p as usize],
@@ -268,6 +436,28 @@ impl Motion {
         };
         self.start(p, morph);
         self.normal_morphs.extend(normals);
+        self.attribute_morphs.extend(attributes);
+    }
+
+    /// The attribute morphs of position `p`'s copies (none when the mesh has no further
+    /// attributes to interpolate), `from_to` giving each copy's start values and the vertex
+    /// whose own values it heads for.
+    fn attribute_morphs_of(
+        &self,
+        p: u32,
+        from_to: impl Fn(u32, &Self) -> (Box<[f32]>, u32),
+    ) -> Vec<(u32, AttributeMorph)> {
+        if self.tables.attributes.is_none() {
+            return Vec::new();
+        }
+        self.tables
+            .copies_of(p)
+            .iter()
+            .map(|&g| {
+                let (from, to) = from_to(g, self);
+                (g, AttributeMorph { from, to })
+            })
+            .collect()
     }
 
     /// Starts position `p` toward `toward` from where it is shown now (nothing when it is
@@ -304,6 +494,13 @@ impl Motion {
             Toward::Own => self.tables.positions[p as usize],
             Toward::Position(q) => self.tables.positions[q as usize],
         };
+        let attributes = self.attribute_morphs_of(p, |g, motion| {
+            let to = match toward {
+                Toward::Own => g,
+                Toward::Position(_) => motion.tables.vertex_representative(g, goal),
+            };
+            (motion.shown_attributes(g, now), to)
+        });
         let morph = Morph {
             from: self.position_of_p(p, now),
             to,
@@ -312,6 +509,7 @@ impl Motion {
         };
         self.start(p, morph);
         self.normal_morphs.extend(normals);
+        self.attribute_morphs.extend(attributes);
     }
 
     /// Ends the morphs toward their own place that are due by `now`.
@@ -339,6 +537,7 @@ impl Motion {
         }
         for &g in self.tables.copies_of(p) {
             self.normal_morphs.remove(&g);
+            self.attribute_morphs.remove(&g);
         }
     }
 
@@ -360,6 +559,37 @@ impl Motion {
             return Some(nm.to);
         }
         Some(nm.from.lerp(nm.to, t).normalize_or(nm.to))
+    }
+
+    /// The further attributes ([`MorphAttributes`]) vertex `g` is shown with at `now`,
+    /// appended to `out` (nothing when the mesh has none to interpolate).
+    /// `None` for `now`: its own values, as at rest.
+    pub(crate) fn write_attributes(&self, g: u32, now: Option<f32>, out: &mut Vec<f32>) {
+        let Some(table) = &self.tables.attributes else {
+            return;
+        };
+        let own = table.vertex(g);
+        let p = self.tables.position_of[g as usize];
+        let (Some(now), Some(m), Some(am)) =
+            (now, self.morphs.get(&p), self.attribute_morphs.get(&g))
+        else {
+            out.extend_from_slice(own);
+            return;
+        };
+        table.interpolate(
+            &am.from,
+            table.vertex(am.to),
+            own,
+            self.progress(m, now),
+            out,
+        );
+    }
+
+    /// [`write_attributes`](Self::write_attributes) of one vertex, on its own.
+    fn shown_attributes(&self, g: u32, now: f32) -> Box<[f32]> {
+        let mut out = Vec::new();
+        self.write_attributes(g, Some(now), &mut out);
+        out.into_boxed_slice()
     }
 
     /// Vertex `g`'s morph as a vertex shader interpolates it.

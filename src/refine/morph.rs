@@ -2,7 +2,7 @@
 //! over a time `T` instead of at once.
 
 use super::{RefineError, VariableCache, VariableMesh};
-use crate::multires::morph::{MorphTables, Motion, Toward, VertexMorph};
+use crate::multires::morph::{MorphGroup, MorphTables, Motion, Toward, VertexMorph};
 use glam::Vec3;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -79,7 +79,8 @@ impl VariableGeomorphs {
                     vertices.normals.clone(),
                     vec![0; vertices.vertex_count()],
                     std::iter::once((&mesh.mesh, None)),
-                );
+                )
+                .with_attributes(vertices);
                 // The view data names every collapse's two vertices, also where the records
                 // rewrite no corner.
                 let moves = (0..mesh.collapse_count())
@@ -334,5 +335,27 @@ impl VariableGeomorphs {
         }
         let n = self.motion.tables.position_of.len() as u32;
         out.extend((0..n).map(|v| self.normal(v, now).unwrap_or(Vec3::Y)));
+    }
+
+    /// The further attributes every vertex is shown with at `now` (`None`: their own, as at
+    /// rest), [`attribute_groups`](Self::attribute_groups)' values per vertex, into `out`
+    /// (cleared; left empty when the mesh has none to interpolate). As
+    /// [`Geomorphs::write_attributes`](crate::regions::Geomorphs::write_attributes).
+    pub fn write_attributes(&self, now: Option<f32>, out: &mut Vec<f32>) {
+        out.clear();
+        let n = self.motion.tables.position_of.len() as u32;
+        for v in 0..n {
+            self.motion.write_attributes(v, now, out);
+        }
+    }
+
+    /// The further attributes morphs interpolate (UVs, tangents, `f32` attributes), in the
+    /// order [`write_attributes`](Self::write_attributes) writes them; empty when none.
+    #[must_use]
+    pub fn attribute_groups(&self) -> &[MorphGroup] {
+        self.motion
+            .tables
+            .attributes()
+            .map_or(&[], |a| a.groups.as_slice())
     }
 }

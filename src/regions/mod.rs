@@ -63,7 +63,7 @@ mod partition;
 mod util;
 
 pub use cache::RegionCaches;
-pub use morph::{Geomorphs, VertexMorph};
+pub use morph::{Geomorphs, MorphGroup, MorphKind, VertexMorph};
 pub use partition::{GridPlane, Partition};
 
 use crate::mesh::MeshError;

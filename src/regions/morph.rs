@@ -2,7 +2,7 @@
 //! moves vertices over a time `T` instead of at once.
 
 use super::{RegionCaches, RegionMesh};
-pub use crate::multires::morph::VertexMorph;
+pub use crate::multires::morph::{MorphGroup, MorphKind, VertexMorph};
 use crate::multires::morph::{MorphTables, Motion, Toward};
 use glam::Vec3;
 use std::sync::Arc;
@@ -83,14 +83,17 @@ impl Geomorphs {
             .morph_tables
             .get_or_init(|| {
                 let source = mesh.source_vertices();
-                Arc::new(MorphTables::new(
-                    source.positions,
-                    source.normals,
-                    mesh.partition().region_of().to_vec(),
-                    mesh.regions()
-                        .iter()
-                        .map(|r| (&r.mesh, Some(r.global.as_slice()))),
-                ))
+                Arc::new(
+                    MorphTables::new(
+                        source.positions.clone(),
+                        source.normals.clone(),
+                        mesh.partition().region_of().to_vec(),
+                        mesh.regions()
+                            .iter()
+                            .map(|r| (&r.mesh, Some(r.global.as_slice()))),
+                    )
+                    .with_attributes(&source),
+                )
             })
             .clone();
         Self {
@@ -441,6 +444,36 @@ impl Geomorphs {
                 .iter()
                 .map(|&g| self.normal(g, now).unwrap_or(Vec3::Y)),
         );
+    }
+
+    /// The further attributes every vertex of region `region` of `mesh` is shown with at
+    /// `now` (`None`: their own, as at rest), [`attribute_groups`](Self::attribute_groups)'
+    /// values per vertex, into `out` (cleared; left empty when the mesh has none to
+    /// interpolate): UVs and `f32` attributes interpolated from what was shown when the
+    /// morph started to the values of the vertex that stands there at its end, tangents too
+    /// but normalised and keeping their own handedness. Attributes of other formats are not
+    /// interpolated: a moving vertex keeps its own.
+    pub fn write_attributes(
+        &self,
+        mesh: &RegionMesh,
+        region: usize,
+        now: Option<f32>,
+        out: &mut Vec<f32>,
+    ) {
+        out.clear();
+        for &g in &mesh.regions()[region].global {
+            self.motion.write_attributes(g, now, out);
+        }
+    }
+
+    /// The further attributes morphs interpolate (UVs, tangents, `f32` attributes), in the
+    /// order [`write_attributes`](Self::write_attributes) writes them; empty when none.
+    #[must_use]
+    pub fn attribute_groups(&self) -> &[MorphGroup] {
+        self.motion
+            .tables
+            .attributes()
+            .map_or(&[], |a| a.groups.as_slice())
     }
 }
 

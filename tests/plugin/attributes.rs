@@ -15,7 +15,7 @@ use bevy_aslod::plugin::{
     ViewDependent,
 };
 use bevy_aslod::regions::Partition;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use std::time::Duration;
 
 #[allow(unused_imports)]
@@ -280,4 +280,80 @@ fn skinned_regions_draw_every_vertex_with_its_source_attributes() {
             .with_translation(Vec3::new(0.2, 0.0, 0.0)),
     );
     run_budgets(&mut app, model, &source, true, 2, "skinned, turned");
+}
+
+/// Moving vertices carry their `f32` attributes with them (CPU geomorphs): on a sphere whose
+/// UVs are each vertex's `(x, z)` and whose `Vertex_Place` is its position, every vertex
+/// drawn in the middle of morphs has the UV and place its morphing position says.
+#[test]
+fn geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
+    let mut source = common::sphere(16, 24, &[0.0, 0.03, -0.02], true);
+    source.normals = Some(source.positions.iter().map(|p| p.normalize()).collect());
+    source.uvs = Some(
+        source
+            .positions
+            .iter()
+            .map(|p| Vec2::new(p.x, p.z))
+            .collect(),
+    );
+    let place: Vec<[f32; 3]> = source.positions.iter().map(|p| p.to_array()).collect();
+    let n = source.positions.len() as u32;
+    source.attributes = vec![
+        VertexAttribute::from_f32("Vertex_Place", 988_540_921, &place),
+        VertexAttribute {
+            name: SOURCE_ID.into(),
+            id: 988_540_920,
+            format: AttributeFormat {
+                scalar: Scalar::U32,
+                components: 1,
+            },
+            data: (0..n).flat_map(u32::to_le_bytes).collect(),
+        },
+    ];
+    // One region: a vertex on a border between regions can move with its neighbour's
+    // collapse while its own region keeps it, with its own attributes.
+    let (partition, _) = Partition::from_ids(&source, &vec![0; n as usize]).expect("one region");
+    let asset = MultiresMesh::from_indexed(&source, &partition).expect("builds");
+    let (mut app, handle) = attribute_app(asset);
+    let model = app
+        .world_mut()
+        .spawn((MultiresModel(handle), Geomorph(1.0), Transform::default()))
+        .id();
+    app.update();
+    app.update();
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-4;
+    let mut moving = 0;
+    for budget in [250, 1_500, 120, 1_000] {
+        app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+        // A second at 60 frames a second: these frames are all in the middle of morphs.
+        for frame in 0..8 {
+            app.update();
+            let instance = app.world().get::<MultiresInstance>(model).unwrap();
+            for &e in instance.region_entities() {
+                let drawn = from_bevy_mesh(mesh_of(&app, e)).expect("a region mesh");
+                let places = drawn.attribute(988_540_921).unwrap().to_f32::<3>().unwrap();
+                let ids = drawn.attribute(988_540_920).unwrap();
+                for &v in &drawn.indices {
+                    let v = v as usize;
+                    let (p, uv, at) = (
+                        drawn.positions[v],
+                        drawn.uvs.as_ref().unwrap()[v],
+                        places[v],
+                    );
+                    let what = format!("budget {budget}, frame {frame}, vertex {v}");
+                    assert!(
+                        close(uv.x, p.x) && close(uv.y, p.z),
+                        "{what}: UV {uv} at {p}"
+                    );
+                    assert!(
+                        (0..3).all(|k| close(at[k], p[k])),
+                        "{what}: place {at:?} at {p}"
+                    );
+                    let g = u32::from_le_bytes(ids.record(v).try_into().unwrap()) as usize;
+                    moving += usize::from(p != source.positions[g]);
+                }
+            }
+        }
+    }
+    assert!(moving > 100, "only {moving} vertices drawn in motion");
 }

@@ -13,7 +13,7 @@
 use super::material::{ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM};
 use crate::plugin::render::UploadTarget;
 use crate::refine::VariableGeomorphs;
-use crate::regions::{Geomorphs, RegionMesh, VertexMorph};
+use crate::regions::{Geomorphs, MorphGroup, MorphKind, RegionMesh, VertexMorph};
 use bevy::asset::AssetId;
 use bevy::mesh::VertexAttributeValues;
 use bevy::prelude::*;
@@ -78,6 +78,11 @@ pub(crate) trait MorphSource {
     fn write_positions(&self, mesh: usize, now: f32, out: &mut Vec<Vec3>);
     /// The normal every vertex of mesh `mesh` is shown with at `now` (empty without normals).
     fn write_normals(&self, mesh: usize, now: f32, out: &mut Vec<Vec3>);
+    /// The further attributes morphs interpolate, in the order of `write_attributes`.
+    fn attribute_groups(&self) -> &[MorphGroup];
+    /// The further attributes every vertex of mesh `mesh` is shown with at `now` (`None`:
+    /// their own), `attribute_groups`' values per vertex (empty when none).
+    fn write_attributes(&self, mesh: usize, now: Option<f32>, out: &mut Vec<f32>);
     /// The runs of vertices (mesh, first, last; in mesh order) that a morph started or
     /// restarted on since the last call.
     fn take_restarted(&mut self) -> Vec<(u32, u32, u32)>;
@@ -115,6 +120,14 @@ impl MorphSource for RegionMorphs<'_> {
 
     fn write_normals(&self, region: usize, now: f32, out: &mut Vec<Vec3>) {
         self.morphs.write_normals(self.regions, region, now, out);
+    }
+
+    fn attribute_groups(&self) -> &[MorphGroup] {
+        self.morphs.attribute_groups()
+    }
+
+    fn write_attributes(&self, region: usize, now: Option<f32>, out: &mut Vec<f32>) {
+        self.morphs.write_attributes(self.regions, region, now, out);
     }
 
     fn take_restarted(&mut self) -> Vec<(u32, u32, u32)> {
@@ -163,6 +176,14 @@ impl MorphSource for LevelMorphs<'_> {
         self.morphs.write_normals(now, out);
     }
 
+    fn attribute_groups(&self) -> &[MorphGroup] {
+        self.morphs.attribute_groups()
+    }
+
+    fn write_attributes(&self, _: usize, now: Option<f32>, out: &mut Vec<f32>) {
+        self.morphs.write_attributes(now, out);
+    }
+
     fn take_restarted(&mut self) -> Vec<(u32, u32, u32)> {
         let runs = self.morphs.take_restarted();
         runs.into_iter().map(|(lo, hi)| (0, lo, hi)).collect()
@@ -190,6 +211,9 @@ pub(crate) struct MorphOutput {
     /// This frame's further runs of a mesh (a view-dependent level's vertices restart in
     /// runs far apart; a region's in one), after its first.
     more: Vec<(u32, VertexRun)>,
+    /// The further attributes the runs carry (UVs, tangents, `f32` attributes), as the
+    /// source gave them at the first `stage`.
+    groups: Option<Vec<MorphGroup>>,
 }
 
 impl MorphOutput {
@@ -201,6 +225,7 @@ impl MorphOutput {
             moved: vec![gpu; meshes],
             runs: vec![VertexRun::default(); meshes],
             more: Vec::new(),
+            groups: None,
         }
     }
 
@@ -227,6 +252,9 @@ impl MorphOutput {
     /// mesh's vertices that a morph started on, with their morph attributes (the whole mesh
     /// when it must be written again).
     pub(crate) fn stage(&mut self, source: &mut impl MorphSource, clock: Clock) {
+        if self.groups.is_none() {
+            self.groups = Some(source.attribute_groups().to_vec());
+        }
         if !self.gpu {
             self.more.clear();
             for (m, (moved, run)) in self.moved.iter_mut().zip(&mut self.runs).enumerate() {
@@ -234,6 +262,7 @@ impl MorphOutput {
                 if moving || *moved {
                     source.write_positions(m, clock.now, &mut run.positions);
                     source.write_normals(m, clock.now, &mut run.normals);
+                    source.write_attributes(m, Some(clock.now), &mut run.attributes);
                     run.at_rest();
                 }
                 *moved = moving;
@@ -250,15 +279,17 @@ impl MorphOutput {
             rest = after;
             let count = source.vertex_count(m);
             let whole = [(m as u32, 0, count.saturating_sub(1) as u32)];
-            let mine = if std::mem::take(moved) {
-                &whole[..]
-            } else {
-                mine
-            };
+            let rewrite = std::mem::take(moved);
+            let mine = if rewrite { &whole[..] } else { mine };
             let Some((&(_, lo, hi), further)) = mine.split_first().filter(|_| count > 0) else {
                 continue;
             };
             run.stage_morphs(lo, source.vertex_morphs(m, lo, hi), duration, clock);
+            // The shaders interpolate positions and normals only: every further attribute
+            // is its own (written with the whole mesh, which the CPU may have morphed).
+            if rewrite {
+                source.write_attributes(m, None, &mut run.attributes);
+            }
             for &(_, lo, hi) in further {
                 if more == self.more.len() {
                     self.more.push((m as u32, VertexRun::default()));
@@ -306,7 +337,7 @@ impl MorphOutput {
             if run.ready
                 && let Some(&id) = ids.get(m)
                 && let Some(mesh) = target.mesh(id)
-                && let Some(written) = run.write(mesh)
+                && let Some(written) = run.write(mesh, self.groups.as_deref().unwrap_or(&[]))
                 && !relayout
             {
                 // (Counted whole once: when its indices changed too, or by its first run.)
@@ -324,6 +355,9 @@ struct VertexRun {
     first: u32,
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
+    /// The further attributes (`MorphOutput::groups`' values per vertex), when the run
+    /// writes them.
+    attributes: Vec<f32>,
     from: Vec<[f32; 4]>,
     normal_from: Vec<[f32; 4]>,
     ready: bool,
@@ -354,6 +388,7 @@ impl VertexRun {
         };
         self.positions.clear();
         self.normals.clear();
+        self.attributes.clear();
         self.from.clear();
         self.normal_from.clear();
         for m in morphs {
@@ -368,14 +403,21 @@ impl VertexRun {
         self.ready = true;
     }
 
-    /// Writes the run into `mesh`; returns the vertices written (first and last), or `None`
-    /// when nothing was new or the mesh lacks room for it.
-    fn write(&mut self, mesh: &mut Mesh) -> Option<[u32; 2]> {
+    /// Writes the run into `mesh` (its further attributes as `groups` says); returns the
+    /// vertices written (first and last), or `None` when nothing was new or the mesh lacks
+    /// room for it.
+    fn write(&mut self, mesh: &mut Mesh, groups: &[MorphGroup]) -> Option<[u32; 2]> {
         if !std::mem::take(&mut self.ready) {
             return None;
         }
         let (first, n) = (self.first as usize, self.positions.len());
         let mut written = true;
+        let stride = groups.last().map_or(0, |g| g.offset + g.len);
+        if stride > 0 && self.attributes.len() == n * stride {
+            for group in groups {
+                write_group(mesh, group, &self.attributes, stride, first);
+            }
+        }
         for (attribute, values) in [
             (Mesh::ATTRIBUTE_POSITION, &self.positions),
             (Mesh::ATTRIBUTE_NORMAL, &self.normals),
@@ -409,6 +451,43 @@ impl VertexRun {
             }
         }
         (n > 0 && written).then(|| [first as u32, (first + n) as u32 - 1])
+    }
+}
+
+/// Writes one further attribute of a run (`values`: `stride` per vertex, the group's at its
+/// offset) into `mesh` from vertex `first`, when the mesh has it as `f32`s.
+fn write_group(mesh: &mut Mesh, group: &MorphGroup, values: &[f32], stride: usize, first: usize) {
+    let attribute = match &group.kind {
+        MorphKind::Uv => Mesh::ATTRIBUTE_UV_0,
+        MorphKind::Tangent => Mesh::ATTRIBUTE_TANGENT,
+        MorphKind::Attribute(a) => crate::bevy_mesh::bevy_attribute(a),
+    };
+    let records = values
+        .chunks_exact(stride)
+        .map(|v| &v[group.offset..group.offset + group.len]);
+    match mesh.try_attribute_mut_option(attribute) {
+        Ok(Some(VertexAttributeValues::Float32(slots))) => {
+            for (slot, r) in slots.iter_mut().skip(first).zip(records) {
+                *slot = r[0];
+            }
+        }
+        Ok(Some(VertexAttributeValues::Float32x2(slots))) => copy_records(slots, first, records),
+        Ok(Some(VertexAttributeValues::Float32x3(slots))) => copy_records(slots, first, records),
+        Ok(Some(VertexAttributeValues::Float32x4(slots))) => copy_records(slots, first, records),
+        _ => {}
+    }
+}
+
+/// Copies `records` (of `N` values each) into `slots` from `first`.
+fn copy_records<'a, const N: usize>(
+    slots: &mut [[f32; N]],
+    first: usize,
+    records: impl Iterator<Item = &'a [f32]>,
+) {
+    for (slot, r) in slots.iter_mut().skip(first).zip(records) {
+        if let Ok(r) = <[f32; N]>::try_from(r) {
+            *slot = r;
+        }
     }
 }
 
