@@ -1,6 +1,7 @@
 //! Popping with and without geomorphs (`regions::Geomorphs`), printed as a table (release):
-//! the bunny (16 clusters), the Silvretta terrain (6×6 grid) and the mannequin at rest (16
-//! clusters), each along a camera path at 60 fps (1280×720, 60° vertical field of view)
+//! the bunny (16 clusters), the Silvretta terrain (6×6 grid), the mannequin at rest (16
+//! clusters) and the WaterBottle (8 clusters; UVs and tangents, which morph with the
+//! positions), each along a camera path at 60 fps (1280×720, 60° vertical field of view)
 //! that orbits far for two seconds, cuts to near, and orbits there for two more. Every
 //! frame the budget is split by the α allocation over the regions' projected boxes, and
 //! `Geomorphs::apply_allocation` applies it: a coarsening region keeps its old count until
@@ -11,8 +12,8 @@
 //! two positions, one that appears from where its stand-in at the old level was shown, one
 //! that vanishes to where its stand-in at the new level is shown. Also the shown triangles
 //! against the budget, the CPU time of the morph bookkeeping (level requests, `update`, and
-//! the positions of every region whose vertices move), the bytes a CPU write of those
-//! positions and normals would upload, and the bytes the GPU path writes instead (the runs of
+//! the positions and further attributes of every region whose vertices move), the bytes a
+//! CPU write of those positions, normals and further attributes would upload, and the bytes the GPU path writes instead (the runs of
 //! vertices a morph started on, `Geomorphs::take_restarted`, 56 B each). T = 1 s shows what
 //! a longer morph does to the largest movement.
 //!
@@ -59,6 +60,9 @@ fn scenes(quick: bool) -> Vec<Scene> {
     let mannequin = load_gltf(std::path::Path::new(&format!("{root}assets/mannequin.glb")))
         .expect("the mannequin")
         .mesh;
+    let (bottle, _) =
+        IndexedMesh::load(format!("{root}../shared/testdata/textured/WaterBottle.glb"))
+            .expect("the bottle");
     vec![
         Scene {
             name: "bunny",
@@ -77,6 +81,12 @@ fn scenes(quick: bool) -> Vec<Scene> {
             partition: Partition::clusters(&mannequin, 16).expect("clusters"),
             mesh: mannequin,
             budget: 0.1,
+        },
+        Scene {
+            name: "WaterBottle",
+            partition: Partition::clusters(&bottle, 8).expect("clusters"),
+            mesh: bottle,
+            budget: 0.2,
         },
     ]
 }
@@ -138,7 +148,7 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
         .collect();
     let mut out = Run::default();
     let mut part = Vec::new();
-    let mut positions = Vec::new();
+    let (mut positions, mut attributes) = (Vec::new(), Vec::new());
     for f in 0..frames {
         let now = f as f32 * DT;
         let (clip, area_camera, _) = camera(f, frames, centre, radius);
@@ -165,7 +175,8 @@ fn run(scene: &Scene, regions: &RegionMesh, obbs: &[Obb], duration: f32, frames:
         for r in 0..regions.regions().len() {
             if morphs.is_region_moving(regions, r) {
                 morphs.write_positions(regions, r, now, &mut positions);
-                bytes += 24 * positions.len();
+                morphs.write_attributes(regions, r, Some(now), &mut attributes);
+                bytes += 24 * positions.len() + 4 * attributes.len();
             }
         }
         out.cpu_ms.push(start.elapsed().as_secs_f64() * 1e3);
@@ -284,7 +295,7 @@ fn run_variable(scene: &Scene, vm: &VariableMesh, duration: f32, frames: usize) 
         .with_back_facing(true);
     let mut out = Run::default();
     let (mut shown, mut level) = (HashMap::new(), morphs.shown().clone());
-    let mut positions = Vec::new();
+    let (mut positions, mut attributes) = (Vec::new(), Vec::new());
     for f in 0..frames {
         let now = f as f32 * DT;
         let (clip, _, eye) = camera(f, frames, centre, radius);
@@ -308,7 +319,8 @@ fn run_variable(scene: &Scene, vm: &VariableMesh, duration: f32, frames: usize) 
         let mut bytes = 0;
         if morphs.is_morphing() {
             morphs.write_positions(now, &mut positions);
-            bytes += 24 * positions.len();
+            morphs.write_attributes(Some(now), &mut attributes);
+            bytes += 24 * positions.len() + 4 * attributes.len();
         }
         out.cpu_ms.push(start.elapsed().as_secs_f64() * 1e3);
         out.bytes.push(bytes);
