@@ -769,3 +769,68 @@ fn variable_levels_carry_their_attributes_along() {
     }
     assert!(moved, "the requests morphed");
 }
+
+/// What a vertex shader makes of `VertexMorph`'s UV and tangent ends is what the CPU path
+/// writes, at any time of a morph.
+#[test]
+fn a_gpu_morph_interpolates_uvs_and_tangents_as_the_cpu_does() {
+    use bevy_aslod::regions::MorphKind;
+    let mesh = with_position_attributes(sphere(12, 16, &[0.0, 0.03], true));
+    let rm = regions(&mesh, 1);
+    let mut rng = Rng(0x6E0);
+    let mut caches = RegionCaches::new(&rm);
+    let mut morphs = Geomorphs::new(&rm, T);
+    let groups = morphs.attribute_groups().to_vec();
+    let uv = groups
+        .iter()
+        .find(|g| g.kind == MorphKind::Uv)
+        .unwrap()
+        .offset;
+    let tangent = groups
+        .iter()
+        .find(|g| g.kind == MorphKind::Tangent)
+        .unwrap()
+        .offset;
+    let (mut values, mut indices) = (Vec::new(), Vec::new());
+    let mut now = 0.0f32;
+    let mut moving = 0;
+    for _ in 0..20 {
+        let count = (rng.unit() * rm.regions()[0].max_triangles() as f32) as usize;
+        morphs.set_triangle_count(&rm, &mut caches, 0, count, now);
+        now += rng.unit() * 0.2;
+        morphs.update(&rm, &mut caches, now);
+        morphs.write_attributes(&rm, 0, Some(now), &mut values);
+        caches.write_indices(&rm, 0, &mut indices);
+        let stride = values.len() / rm.regions()[0].global_vertices().len();
+        for &i in &indices {
+            let g = rm.regions()[0].global_vertices()[i as usize];
+            let v = morphs.vertex_morph(g);
+            let t = ((now - v.start) / T).clamp(0.0, 1.0);
+            let cpu = &values[i as usize * stride..(i as usize + 1) * stride];
+            let gpu_uv = if t >= 1.0 {
+                v.uv_to
+            } else {
+                v.uv_from.lerp(v.uv_to, t)
+            };
+            assert!(
+                gpu_uv.distance(glam::Vec2::new(cpu[uv], cpu[uv + 1])) < 1e-5,
+                "vertex {g}: UV {gpu_uv} on the GPU, {:?} on the CPU",
+                &cpu[uv..uv + 2]
+            );
+            let dir = v.tangent_from.truncate().lerp(v.tangent_to.truncate(), t);
+            let dir = if t >= 1.0 {
+                v.tangent_to.truncate()
+            } else {
+                dir.normalize_or(v.tangent_to.truncate())
+            };
+            let cpu_tangent = glam::Vec4::from_slice(&cpu[tangent..tangent + 4]);
+            assert!(
+                dir.distance(cpu_tangent.truncate()) < 1e-5,
+                "vertex {g}'s tangent"
+            );
+            assert_eq!(v.tangent_to.w, cpu_tangent.w, "vertex {g}'s handedness");
+            moving += usize::from(v.from != v.to);
+        }
+    }
+    assert!(moving > 0, "no vertex drawn in motion");
+}

@@ -10,7 +10,7 @@
 use super::ProgressiveMesh;
 use crate::mesh::{IndexedMesh, Scalar, VertexAttribute};
 use crate::util::{Buckets, buckets};
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A, Vec4};
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
@@ -183,7 +183,9 @@ impl MorphAttributes {
 
 /// One vertex's morph as a vertex shader interpolates it: shown at `from + (to - from) * t`
 /// with `t = ((now - start) / duration).clamp(0, 1)` (`to` itself at `t = 1`), its normal at
-/// `normal_from.lerp(normal_to, t)`, normalised. A vertex at rest has `from == to`.
+/// `normal_from.lerp(normal_to, t)`, normalised, its first UV set at
+/// `uv_from.lerp(uv_to, t)`, its tangent's direction as its normal's and its handedness
+/// `tangent_to.w`. A vertex at rest has `from == to`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VertexMorph {
     /// Where the vertex was shown when its morph started.
@@ -194,6 +196,14 @@ pub struct VertexMorph {
     pub normal_from: Vec3,
     /// Its normal at the end (zero when the mesh has none).
     pub normal_to: Vec3,
+    /// Its first UV set when the morph started (zero when the mesh has none).
+    pub uv_from: Vec2,
+    /// Its first UV set at the end (zero when the mesh has none).
+    pub uv_to: Vec2,
+    /// Its tangent when the morph started (zero when the mesh has none; `w` as `tangent_to`).
+    pub tangent_from: Vec4,
+    /// Its tangent at the end, with its own handedness (zero when the mesh has none).
+    pub tangent_to: Vec4,
     /// When the morph started, on the clock of the `now` arguments.
     pub start: f32,
 }
@@ -599,13 +609,39 @@ impl Motion {
         let own_normal = self.own_normal(g);
         let m = self.morphs.get(&p);
         let nm = m.and(self.normal_morphs.get(&g));
-        VertexMorph {
+        let mut morph = VertexMorph {
             from: m.map_or(own, |m| m.from),
             to: m.map_or(own, |m| m.to),
             normal_from: nm.map_or(own_normal, |n| n.from),
             normal_to: nm.map_or(own_normal, |n| n.to),
+            uv_from: Vec2::ZERO,
+            uv_to: Vec2::ZERO,
+            tangent_from: Vec4::ZERO,
+            tangent_to: Vec4::ZERO,
             start: m.map_or(0.0, |m| m.start),
+        };
+        let Some(table) = &self.tables.attributes else {
+            return morph;
+        };
+        let own = table.vertex(g);
+        let am = m.and(self.attribute_morphs.get(&g));
+        let from = am.map_or(own, |a| &a.from[..]);
+        let to = am.map_or(own, |a| table.vertex(a.to));
+        for group in &table.groups {
+            let o = group.offset;
+            match group.kind {
+                MorphKind::Uv => {
+                    morph.uv_from = Vec2::new(from[o], from[o + 1]);
+                    morph.uv_to = Vec2::new(to[o], to[o + 1]);
+                }
+                MorphKind::Tangent => {
+                    morph.tangent_from = Vec4::new(from[o], from[o + 1], from[o + 2], own[o + 3]);
+                    morph.tangent_to = Vec4::new(to[o], to[o + 1], to[o + 2], own[o + 3]);
+                }
+                MorphKind::Attribute(_) => {}
+            }
         }
+        morph
     }
 
     /// Whether the mesh has normals.
