@@ -7,15 +7,19 @@
 //! share of pixels that changed since the previous frame, and how far the CPU and GPU runs
 //! are apart) and `geomorph-frames.png`, a plot of the first against the others. `--check`
 //! also fails when the GPU run does not draw what the CPU run does, or pops as much as the
-//! run without geomorphs (the render test runs it).
+//! run without geomorphs (the render test runs it). `--textured` gives the terrain UVs,
+//! tangents, a checkered base colour and a bumpy normal map, so that the UVs and tangents
+//! morph visibly too.
 
 #[path = "common/mod.rs"]
 mod common;
 
+use bevy::asset::RenderAssetUsages;
 use bevy::camera::RenderTarget;
+use bevy::image::{ImageAddressMode, ImageSampler, ImageSamplerDescriptor};
 use bevy::prelude::*;
 use bevy::render::RenderApp;
-use bevy::render::render_resource::TextureFormat;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, Geomorph, GeomorphMaterial, MultiresMesh, MultiresModel,
@@ -52,6 +56,9 @@ struct Args {
     /// Also save every frame as PNG.
     #[arg(long)]
     frames: bool,
+    /// Give the terrain UVs, tangents, a checkered base colour and a bumpy normal map.
+    #[arg(long)]
+    textured: bool,
 }
 
 /// How a run changes levels.
@@ -80,6 +87,56 @@ impl Mode {
     }
 }
 
+/// A 64×64 repeating texture: a checkered base colour (sRGB), or a normal map of round bumps
+/// (linear).
+fn texture(colour: bool) -> Image {
+    const N: usize = 64;
+    let mut data = Vec::with_capacity(N * N * 4);
+    for y in 0..N {
+        for x in 0..N {
+            let (u, v) = (x as f32 / N as f32, y as f32 / N as f32);
+            if colour {
+                let light = ((x / 16) + (y / 16)) % 2 == 0;
+                data.extend(if light {
+                    [200, 190, 170, 255]
+                } else {
+                    [90, 110, 80, 255]
+                });
+            } else {
+                let (dx, dy) = (
+                    (u * std::f32::consts::TAU * 2.0).cos(),
+                    (v * std::f32::consts::TAU * 2.0).cos(),
+                );
+                let n = Vec3::new(-0.5 * dx, -0.5 * dy, 1.0).normalize();
+                data.extend(n.to_array().map(|c| ((c * 0.5 + 0.5) * 255.0) as u8));
+                data.push(255);
+            }
+        }
+    }
+    let format = if colour {
+        TextureFormat::Rgba8UnormSrgb
+    } else {
+        TextureFormat::Rgba8Unorm
+    };
+    let mut image = Image::new(
+        Extent3d {
+            width: N as u32,
+            height: N as u32,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        data,
+        format,
+        RenderAssetUsages::default(),
+    );
+    image.sampler = ImageSampler::Descriptor(ImageSamplerDescriptor {
+        address_mode_u: ImageAddressMode::Repeat,
+        address_mode_v: ImageAddressMode::Repeat,
+        ..ImageSamplerDescriptor::linear()
+    });
+    image
+}
+
 fn main() {
     let args = Args::parse();
     if let Err(e) = run(&args) {
@@ -100,16 +157,31 @@ fn run(args: &Args) -> Result<(), String> {
             TextureFormat::Rgba8Unorm,
             Some(TextureFormat::Rgba8UnormSrgb),
         ));
-    let mesh = common::terrain::terrain_middle(97);
+    let mut mesh = common::terrain::terrain_middle(97);
+    if args.textured {
+        mesh.uvs = Some(
+            mesh.positions
+                .iter()
+                .map(|p| Vec2::new(p.x, p.z) * 0.25)
+                .collect(),
+        );
+        mesh.generate_tangents().map_err(|e| e.to_string())?;
+    }
     let grid = Partition::grid(&mesh, GridPlane::XZ, 4, 4).map_err(|e| e.to_string())?;
     let asset = MultiresMesh::from_indexed(&mesh, &grid).map_err(|e| e.to_string())?;
     let world = app.world_mut();
     let asset = world.resource_mut::<Assets<MultiresMesh>>().add(asset);
-    let base = StandardMaterial {
+    let mut base = StandardMaterial {
         base_color: Color::srgb(0.6, 0.57, 0.5),
         perceptual_roughness: 0.9,
         ..default()
     };
+    if args.textured {
+        let mut images = world.resource_mut::<Assets<Image>>();
+        base.base_color = Color::WHITE;
+        base.base_color_texture = Some(images.add(texture(true)));
+        base.normal_map_texture = Some(images.add(texture(false)));
+    }
     let standard = world
         .resource_mut::<Assets<StandardMaterial>>()
         .add(base.clone());

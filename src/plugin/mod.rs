@@ -84,8 +84,9 @@ pub use components::{
 };
 pub use error::MultiresError;
 pub use geomorph::{
-    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, GeomorphExtension, GeomorphMaterial,
-    GeomorphMaterialPlugin, GpuGeomorph,
+    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, ATTRIBUTE_MORPH_TANGENT_FROM,
+    ATTRIBUTE_MORPH_UV_FROM, GeomorphExtension, GeomorphMaterial, GeomorphMaterialPlugin,
+    GpuGeomorph,
 };
 pub use instance::{MultiresInstance, Refinement};
 pub use loader::{MrmLoadError, MrmLoader};

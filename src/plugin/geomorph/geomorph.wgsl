@@ -1,6 +1,7 @@
 // Bevy's mesh vertex shader (bevy_pbr 0.19 `mesh.wgsl`) with geomorphs: a vertex with the
 // morph attributes is drawn on its way from `morph_from.xyz` to its position, started at
-// `morph_from.w` seconds and taking `1 / morph_normal_from.w`, by `globals.time`.
+// `morph_from.w` seconds and taking `1 / morph_normal_from.w`, by `globals.time`; its normal,
+// UVs (`ASLOD_GEOMORPH_UV`) and tangent (`ASLOD_GEOMORPH_TANGENT`) go along.
 // Regions have no morph targets, so Bevy's morph-target path is left out.
 #import bevy_pbr::{
     mesh_functions,
@@ -39,6 +40,12 @@ struct Vertex {
     @location(8) morph_from: vec4<f32>,
     @location(9) morph_normal_from: vec4<f32>,
 #endif
+#ifdef ASLOD_GEOMORPH_UV
+    @location(10) morph_uv_from: vec2<f32>,
+#endif
+#ifdef ASLOD_GEOMORPH_TANGENT
+    @location(11) morph_tangent_from: vec4<f32>,
+#endif
 };
 
 @vertex
@@ -53,6 +60,19 @@ fn vertex(vertex_in: Vertex) -> VertexOutput {
 #endif
 #ifdef VERTEX_NORMALS
     vertex.normal = geomorph::normal(vertex.morph_normal_from.xyz, vertex.normal, t);
+#endif
+#ifdef ASLOD_GEOMORPH_UV
+#ifdef VERTEX_UVS_A
+    vertex.uv = geomorph::uv(vertex.morph_uv_from, vertex.uv, t);
+#endif
+#endif
+#ifdef ASLOD_GEOMORPH_TANGENT
+#ifdef VERTEX_TANGENTS
+    vertex.tangent = vec4<f32>(
+        geomorph::normal(vertex.morph_tangent_from.xyz, vertex.tangent.xyz, t),
+        vertex.tangent.w
+    );
+#endif
 #endif
 #endif
 

@@ -29,3 +29,11 @@ fn normal(first: vec3<f32>, last: vec3<f32>, t: f32) -> vec3<f32> {
     }
     return normalize(n);
 }
+
+// The UVs at progress `t` from `first` to `last` (exactly `last` at the end).
+fn uv(first: vec2<f32>, last: vec2<f32>, t: f32) -> vec2<f32> {
+    if t >= 1.0 {
+        return last;
+    }
+    return first + (last - first) * t;
+}

@@ -41,6 +41,18 @@ struct Vertex {
     @location(8) morph_from: vec4<f32>,
     @location(9) morph_normal_from: vec4<f32>,
 #endif
+#ifdef ASLOD_GEOMORPH_UV
+#ifdef VERTEX_UVS_A
+    @location(10) morph_uv_from: vec2<f32>,
+#endif
+#endif
+#ifdef ASLOD_GEOMORPH_TANGENT
+#ifdef NORMAL_PREPASS_OR_DEFERRED_PREPASS
+#ifdef VERTEX_TANGENTS
+    @location(11) morph_tangent_from: vec4<f32>,
+#endif
+#endif
+#endif
 }
 
 // Where the vertex is drawn at `time`.
@@ -59,10 +71,23 @@ fn vertex(vertex_in: Vertex) -> VertexOutput {
     var vertex = vertex_in;
     vertex.position = morph_position(vertex_in, prepass_globals.time);
 #ifdef ASLOD_GEOMORPH
+    let t = geomorph::progress(prepass_globals.time, vertex.morph_from.w, vertex.morph_normal_from.w);
 #ifdef NORMAL_PREPASS_OR_DEFERRED_PREPASS
 #ifdef VERTEX_NORMALS
-    let t = geomorph::progress(prepass_globals.time, vertex.morph_from.w, vertex.morph_normal_from.w);
     vertex.normal = geomorph::normal(vertex.morph_normal_from.xyz, vertex.normal, t);
+#endif
+#ifdef ASLOD_GEOMORPH_TANGENT
+#ifdef VERTEX_TANGENTS
+    vertex.tangent = vec4<f32>(
+        geomorph::normal(vertex.morph_tangent_from.xyz, vertex.tangent.xyz, t),
+        vertex.tangent.w
+    );
+#endif
+#endif
+#endif
+#ifdef ASLOD_GEOMORPH_UV
+#ifdef VERTEX_UVS_A
+    vertex.uv = geomorph::uv(vertex.morph_uv_from, vertex.uv, t);
 #endif
 #endif
 #endif

@@ -5,9 +5,12 @@
 //!
 //! A region mesh of a [`GpuGeomorph`] model carries two more vertex attributes,
 //! [`ATTRIBUTE_MORPH_FROM`] (the position a morph starts from, and its start time) and
-//! [`ATTRIBUTE_MORPH_NORMAL_FROM`] (the normal it starts with, and `1 / T`); its position
-//! and normal are the morph's ends. The plugin writes a vertex's four values once, when a
-//! morph starts on it, not each frame it moves.
+//! [`ATTRIBUTE_MORPH_NORMAL_FROM`] (the normal it starts with, and `1 / T`), and where it has
+//! UVs and tangents [`ATTRIBUTE_MORPH_UV_FROM`] and [`ATTRIBUTE_MORPH_TANGENT_FROM`]; its
+//! position, normal, UVs and tangent are the morph's ends. The plugin writes a vertex's
+//! values once, when a morph starts on it, not each frame it moves. Other attributes (a
+//! second UV set, colours, custom ones) are not interpolated here: a moving vertex keeps its
+//! own.
 
 use crate::plugin::components::MultiresModel;
 use crate::plugin::materials::MultiresMaterialPlugin;
@@ -34,6 +37,19 @@ pub const ATTRIBUTE_MORPH_FROM: MeshVertexAttribute =
 pub const ATTRIBUTE_MORPH_NORMAL_FROM: MeshVertexAttribute = MeshVertexAttribute::new(
     "Aslod_MorphNormalFrom",
     0x0A51_0D02,
+    VertexFormat::Float32x4,
+);
+
+/// The first UV set a morphing vertex started with; its end is the mesh's `ATTRIBUTE_UV_0`.
+/// Present on meshes with UVs.
+pub const ATTRIBUTE_MORPH_UV_FROM: MeshVertexAttribute =
+    MeshVertexAttribute::new("Aslod_MorphUvFrom", 0x0A51_0D03, VertexFormat::Float32x2);
+
+/// The tangent a morphing vertex started with (`xyz`; the handedness is the end's, the mesh's
+/// `ATTRIBUTE_TANGENT`). Present on meshes with tangents.
+pub const ATTRIBUTE_MORPH_TANGENT_FROM: MeshVertexAttribute = MeshVertexAttribute::new(
+    "Aslod_MorphTangentFrom",
+    0x0A51_0D04,
     VertexFormat::Float32x4,
 );
 
@@ -99,14 +115,26 @@ impl MaterialExtension for GeomorphExtension {
         if !(mesh.contains(ATTRIBUTE_MORPH_FROM) && mesh.contains(ATTRIBUTE_MORPH_NORMAL_FROM)) {
             return Ok(());
         }
-        // Both passes read the morph at locations 8 and 9, after Bevy's own attributes.
-        let morph = mesh.get_layout(&[
+        // Both passes read the morph at locations 8 and 9, after Bevy's own attributes, and
+        // the UVs' and tangents' starts at 10 and 11 where the mesh has them.
+        let mut attributes = vec![
             ATTRIBUTE_MORPH_FROM.at_shader_location(8),
             ATTRIBUTE_MORPH_NORMAL_FROM.at_shader_location(9),
-        ])?;
+        ];
+        let mut defs = vec!["ASLOD_GEOMORPH"];
+        if mesh.contains(ATTRIBUTE_MORPH_UV_FROM) && mesh.contains(Mesh::ATTRIBUTE_UV_0) {
+            attributes.push(ATTRIBUTE_MORPH_UV_FROM.at_shader_location(10));
+            defs.push("ASLOD_GEOMORPH_UV");
+        }
+        if mesh.contains(ATTRIBUTE_MORPH_TANGENT_FROM) && mesh.contains(Mesh::ATTRIBUTE_TANGENT) {
+            attributes.push(ATTRIBUTE_MORPH_TANGENT_FROM.at_shader_location(11));
+            defs.push("ASLOD_GEOMORPH_TANGENT");
+        }
+        let morph = mesh.get_layout(&attributes)?;
         if let Some(buffer) = descriptor.vertex.buffers.first_mut() {
             buffer.attributes.extend(morph.attributes);
-            descriptor.vertex.shader_defs.push("ASLOD_GEOMORPH".into());
+            let shader_defs = &mut descriptor.vertex.shader_defs;
+            shader_defs.extend(defs.into_iter().map(Into::into));
         }
         Ok(())
     }

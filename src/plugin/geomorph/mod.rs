@@ -8,8 +8,9 @@ mod output;
 mod regions;
 
 pub use material::{
-    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, GeomorphExtension, GeomorphMaterial,
-    GeomorphMaterialPlugin, GpuGeomorph,
+    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, ATTRIBUTE_MORPH_TANGENT_FROM,
+    ATTRIBUTE_MORPH_UV_FROM, GeomorphExtension, GeomorphMaterial, GeomorphMaterialPlugin,
+    GpuGeomorph,
 };
 pub(crate) use output::{Clock, LevelMorphs, MorphChange, MorphOutput};
 pub(crate) use regions::{RegionGeomorphs, RegionGrant};

@@ -7,10 +7,14 @@
 //!   positions and normals where the morphs show them (once more at rest after a morph).
 //! - With a material that interpolates on the GPU ([`GpuGeomorph`](super::GpuGeomorph)), a
 //!   vertex is written once, when a morph starts on it, with the morph attributes
-//!   ([`ATTRIBUTE_MORPH_FROM`], [`ATTRIBUTE_MORPH_NORMAL_FROM`]) that the shaders beside this
-//!   file read; the meshes get those attributes the first time they are written.
+//!   ([`ATTRIBUTE_MORPH_FROM`], [`ATTRIBUTE_MORPH_NORMAL_FROM`], and for UVs and tangents
+//!   [`ATTRIBUTE_MORPH_UV_FROM`], [`ATTRIBUTE_MORPH_TANGENT_FROM`]) that the shaders beside
+//!   this file read; the meshes get those attributes the first time they are written.
 
-use super::material::{ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM};
+use super::material::{
+    ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, ATTRIBUTE_MORPH_TANGENT_FROM,
+    ATTRIBUTE_MORPH_UV_FROM,
+};
 use crate::plugin::render::UploadTarget;
 use crate::refine::VariableGeomorphs;
 use crate::regions::{Geomorphs, MorphGroup, MorphKind, RegionMesh, VertexMorph};
@@ -360,6 +364,11 @@ struct VertexRun {
     attributes: Vec<f32>,
     from: Vec<[f32; 4]>,
     normal_from: Vec<[f32; 4]>,
+    /// On the GPU: the UVs' and tangents' ends (written to the mesh's own) and starts.
+    uv_to: Vec<[f32; 2]>,
+    uv_from: Vec<[f32; 2]>,
+    tangent_to: Vec<[f32; 4]>,
+    tangent_from: Vec<[f32; 4]>,
     ready: bool,
 }
 
@@ -369,7 +378,15 @@ impl VertexRun {
         self.first = 0;
         self.from.clear();
         self.normal_from.clear();
+        self.clear_gpu_attributes();
         self.ready = true;
+    }
+
+    fn clear_gpu_attributes(&mut self) {
+        self.uv_to.clear();
+        self.uv_from.clear();
+        self.tangent_to.clear();
+        self.tangent_from.clear();
     }
 
     /// Stages the vertices from `first` on with their morphs (`duration` seconds), for a
@@ -391,6 +408,7 @@ impl VertexRun {
         self.attributes.clear();
         self.from.clear();
         self.normal_from.clear();
+        self.clear_gpu_attributes();
         for m in morphs {
             // The start on the shaders' clock: as long ago as on the CPU's.
             let start = clock.shader - (clock.now - m.start);
@@ -398,6 +416,10 @@ impl VertexRun {
             self.normals.push(m.normal_to);
             self.from.push(m.from.extend(start).to_array());
             self.normal_from.push(m.normal_from.extend(inv).to_array());
+            self.uv_to.push(m.uv_to.to_array());
+            self.uv_from.push(m.uv_from.to_array());
+            self.tangent_to.push(m.tangent_to.to_array());
+            self.tangent_from.push(m.tangent_from.to_array());
         }
         self.first = first;
         self.ready = true;
@@ -429,6 +451,30 @@ impl VertexRun {
                 for (slot, v) in slots.iter_mut().zip(values) {
                     *slot = v.to_array();
                 }
+            }
+        }
+        // On the GPU, the UVs' and tangents' ends and starts (after the further attributes,
+        // which a whole mesh's run writes as their own; empty on the CPU path).
+        for (attribute, values) in [
+            (Mesh::ATTRIBUTE_UV_0, &self.uv_to),
+            (ATTRIBUTE_MORPH_UV_FROM, &self.uv_from),
+        ] {
+            if let Ok(Some(VertexAttributeValues::Float32x2(slots))) =
+                mesh.try_attribute_mut_option(attribute)
+                && let Some(slots) = slots.get_mut(first..first + values.len())
+            {
+                slots.copy_from_slice(values);
+            }
+        }
+        for (attribute, values) in [
+            (Mesh::ATTRIBUTE_TANGENT, &self.tangent_to),
+            (ATTRIBUTE_MORPH_TANGENT_FROM, &self.tangent_from),
+        ] {
+            if let Ok(Some(VertexAttributeValues::Float32x4(slots))) =
+                mesh.try_attribute_mut_option(attribute)
+                && let Some(slots) = slots.get_mut(first..first + values.len())
+            {
+                slots.copy_from_slice(values);
             }
         }
         for (attribute, values) in [
@@ -510,4 +556,14 @@ fn add_morph_attributes(mesh: &mut Mesh) {
     };
     mesh.insert_attribute(ATTRIBUTE_MORPH_FROM, rest);
     mesh.insert_attribute(ATTRIBUTE_MORPH_NORMAL_FROM, normals);
+    if let Some(VertexAttributeValues::Float32x2(uvs)) = mesh.attribute(Mesh::ATTRIBUTE_UV_0) {
+        let uvs = uvs.clone();
+        mesh.insert_attribute(ATTRIBUTE_MORPH_UV_FROM, uvs);
+    }
+    if let Some(VertexAttributeValues::Float32x4(tangents)) =
+        mesh.attribute(Mesh::ATTRIBUTE_TANGENT)
+    {
+        let tangents = tangents.clone();
+        mesh.insert_attribute(ATTRIBUTE_MORPH_TANGENT_FROM, tangents);
+    }
 }
