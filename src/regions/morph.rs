@@ -466,6 +466,13 @@ impl Geomorphs {
         }
     }
 
+    /// The further attributes source vertex `g` is shown with at `now` (`None`: its own),
+    /// [`attribute_groups`](Self::attribute_groups)' values, appended to `out` (nothing when
+    /// the mesh has none to interpolate). As [`write_attributes`](Self::write_attributes).
+    pub fn write_vertex_attributes(&self, g: u32, now: Option<f32>, out: &mut Vec<f32>) {
+        self.motion.write_attributes(g, now, out);
+    }
+
     /// The further attributes morphs interpolate (UVs, tangents, `f32` attributes), in the
     /// order [`write_attributes`](Self::write_attributes) writes them; empty when none.
     #[must_use]

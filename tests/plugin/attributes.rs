@@ -282,11 +282,9 @@ fn skinned_regions_draw_every_vertex_with_its_source_attributes() {
     run_budgets(&mut app, model, &source, true, 2, "skinned, turned");
 }
 
-/// Moving vertices carry their `f32` attributes with them (CPU geomorphs): on a sphere whose
-/// UVs are each vertex's `(x, z)` and whose `Vertex_Place` is its position, every vertex
-/// drawn in the middle of morphs has the UV and place its morphing position says.
-#[test]
-fn geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
+/// A bumpy sphere whose UVs are each vertex's `(x, z)`, whose `Vertex_Place` is its position
+/// and whose tangents point along it, with the source id of each vertex.
+fn placed_sphere() -> IndexedMesh {
     let mut source = common::sphere(16, 24, &[0.0, 0.03, -0.02], true);
     source.normals = Some(source.positions.iter().map(|p| p.normalize()).collect());
     source.uvs = Some(
@@ -310,15 +308,64 @@ fn geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
             data: (0..n).flat_map(u32::to_le_bytes).collect(),
         },
     ];
+    source.tangents = Some(
+        source
+            .positions
+            .iter()
+            .map(|p| p.normalize().extend(1.0))
+            .collect(),
+    );
+    source
+}
+
+/// Moving vertices carry their `f32` attributes with them (CPU geomorphs): on a
+/// [`placed_sphere`], every vertex drawn in the middle of morphs has the UV and place its
+/// morphing position says.
+#[test]
+fn geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
+    let source = placed_sphere();
     // One region: a vertex on a border between regions can move with its neighbour's
     // collapse while its own region keeps it, with its own attributes.
-    let (partition, _) = Partition::from_ids(&source, &vec![0; n as usize]).expect("one region");
+    let n = source.positions.len();
+    let (partition, _) = Partition::from_ids(&source, &vec![0; n]).expect("one region");
     let asset = MultiresMesh::from_indexed(&source, &partition).expect("builds");
     let (mut app, handle) = attribute_app(asset);
     let model = app
         .world_mut()
         .spawn((MultiresModel(handle), Geomorph(1.0), Transform::default()))
         .id();
+    check_attributes_in_motion(&mut app, model, &source);
+}
+
+/// The same on a skinned model in its bind pose (one joint: one rigid region), whose
+/// tangents are skinned from where the morphs show them.
+#[test]
+fn skinned_geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
+    let mut source = placed_sphere();
+    let n = source.positions.len();
+    source.joints = Some(vec![[0; 4]; n]);
+    source.weights = Some(vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let asset = MultiresMesh::from_skinned(&source, &[Mat4::IDENTITY], 0.01).expect("builds");
+    let (mut app, handle) = attribute_app(asset);
+    let joint = app.world_mut().spawn(Transform::default()).id();
+    let model = app
+        .world_mut()
+        .spawn((
+            MultiresModel(handle),
+            MultiresSkin {
+                joints: vec![joint],
+            },
+            Geomorph(1.0),
+            Transform::default(),
+        ))
+        .id();
+    check_attributes_in_motion(&mut app, model, &source);
+}
+
+/// Steps `model`, a [`placed_sphere`] under one-second geomorphs, through budget changes,
+/// checking every drawn vertex's UV, place and tangent against its drawn position in the
+/// middle of the morphs.
+fn check_attributes_in_motion(app: &mut App, model: Entity, source: &IndexedMesh) {
     app.update();
     app.update();
     let close = |a: f32, b: f32| (a - b).abs() <= 1e-4;
@@ -330,7 +377,7 @@ fn geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
             app.update();
             let instance = app.world().get::<MultiresInstance>(model).unwrap();
             for &e in instance.region_entities() {
-                let drawn = from_bevy_mesh(mesh_of(&app, e)).expect("a region mesh");
+                let drawn = from_bevy_mesh(mesh_of(app, e)).expect("a region mesh");
                 let places = drawn.attribute(988_540_921).unwrap().to_f32::<3>().unwrap();
                 let ids = drawn.attribute(988_540_920).unwrap();
                 for &v in &drawn.indices {
@@ -349,6 +396,9 @@ fn geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
                         (0..3).all(|k| close(at[k], p[k])),
                         "{what}: place {at:?} at {p}"
                     );
+                    let t = drawn.tangents.as_ref().unwrap()[v];
+                    let along = t.truncate().normalize().dot(p.normalize());
+                    assert!(along > 0.999, "{what}: tangent {t} at {p}");
                     let g = u32::from_le_bytes(ids.record(v).try_into().unwrap()) as usize;
                     moving += usize::from(p != source.positions[g]);
                 }

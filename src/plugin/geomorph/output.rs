@@ -503,35 +503,47 @@ impl VertexRun {
 /// Writes one further attribute of a run (`values`: `stride` per vertex, the group's at its
 /// offset) into `mesh` from vertex `first`, when the mesh has it as `f32`s.
 fn write_group(mesh: &mut Mesh, group: &MorphGroup, values: &[f32], stride: usize, first: usize) {
+    let records = values.chunks_exact(stride).enumerate();
+    write_group_records(mesh, group, records.map(|(i, v)| (first + i, v)));
+}
+
+/// Writes one further attribute into `mesh`: each `(vertex, values)` of `records` holds the
+/// vertex's values for every group, the group's at its offset. Nothing when the mesh does
+/// not have the attribute as `f32`s.
+pub(crate) fn write_group_records<'a>(
+    mesh: &mut Mesh,
+    group: &MorphGroup,
+    records: impl Iterator<Item = (usize, &'a [f32])>,
+) {
     let attribute = match &group.kind {
         MorphKind::Uv => Mesh::ATTRIBUTE_UV_0,
         MorphKind::Tangent => Mesh::ATTRIBUTE_TANGENT,
         MorphKind::Attribute(a) => crate::bevy_mesh::bevy_attribute(a),
     };
-    let records = values
-        .chunks_exact(stride)
-        .map(|v| &v[group.offset..group.offset + group.len]);
+    let range = group.offset..group.offset + group.len;
+    let records = records.filter_map(|(v, r)| r.get(range.clone()).map(|r| (v, r)));
     match mesh.try_attribute_mut_option(attribute) {
         Ok(Some(VertexAttributeValues::Float32(slots))) => {
-            for (slot, r) in slots.iter_mut().skip(first).zip(records) {
-                *slot = r[0];
+            for (v, r) in records {
+                if let Some(slot) = slots.get_mut(v) {
+                    *slot = r[0];
+                }
             }
         }
-        Ok(Some(VertexAttributeValues::Float32x2(slots))) => copy_records(slots, first, records),
-        Ok(Some(VertexAttributeValues::Float32x3(slots))) => copy_records(slots, first, records),
-        Ok(Some(VertexAttributeValues::Float32x4(slots))) => copy_records(slots, first, records),
+        Ok(Some(VertexAttributeValues::Float32x2(slots))) => copy_records(slots, records),
+        Ok(Some(VertexAttributeValues::Float32x3(slots))) => copy_records(slots, records),
+        Ok(Some(VertexAttributeValues::Float32x4(slots))) => copy_records(slots, records),
         _ => {}
     }
 }
 
-/// Copies `records` (of `N` values each) into `slots` from `first`.
+/// Copies `records` (a vertex and its `N` values) into `slots`.
 fn copy_records<'a, const N: usize>(
     slots: &mut [[f32; N]],
-    first: usize,
-    records: impl Iterator<Item = &'a [f32]>,
+    records: impl Iterator<Item = (usize, &'a [f32])>,
 ) {
-    for (slot, r) in slots.iter_mut().skip(first).zip(records) {
-        if let Ok(r) = <[f32; N]>::try_from(r) {
+    for (v, r) in records {
+        if let (Some(slot), Ok(r)) = (slots.get_mut(v), <[f32; N]>::try_from(r)) {
             *slot = r;
         }
     }

@@ -21,13 +21,13 @@ pub(crate) mod binding;
 
 use super::components::AslodStats;
 use super::diagnostics;
-use super::geomorph::RegionGeomorphs;
+use super::geomorph::{RegionGeomorphs, write_group_records};
 use super::instance::MultiresInstance;
 use super::render::{UploadTarget, swap_indices};
 use super::tasks::par_chunks;
 use crate::bounds::Obb;
 use crate::mesh::IndexedMesh;
-use crate::regions::{Geomorphs, RegionCaches, RegionMesh};
+use crate::regions::{Geomorphs, MorphGroup, MorphKind, RegionCaches, RegionMesh};
 use crate::skin::{Influences, SkinRegionKind, blend, blend_with_tangents};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::system::NonSendMarker;
@@ -35,7 +35,7 @@ use bevy::mesh::VertexAttributeValues;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use binding::SkinBinding;
-use glam::{Affine3A, Mat3, Mat4, Vec3};
+use glam::{Affine3A, Mat3, Mat4, Vec3, Vec4};
 use std::sync::Arc;
 
 /// The joints of a skinned [`MultiresModel`](super::MultiresModel), in the skin's joint
@@ -79,6 +79,14 @@ struct RegionSkin {
     /// skinned from (the source's, moving ones where their morph shows them).
     morph_positions: Vec<Vec3>,
     morph_normals: Vec<Vec3>,
+    /// Under geomorphs, when the mesh has further attributes to interpolate: the bind-space
+    /// tangents the region is skinned from (as the positions), and the further attributes
+    /// of its vertices where the morphs show them (`Geomorphs::attribute_groups`' values per
+    /// local vertex), which `Upload` writes for the vertices written.
+    morph_tangents: Vec<Vec4>,
+    morph_attributes: Vec<f32>,
+    /// `morph_attributes` holds this frame's values of the vertices written.
+    attributes_written: bool,
 }
 
 impl RegionSkin {
@@ -119,6 +127,9 @@ pub(crate) struct SkinState {
     root_global: Affine3A,
     regions: Vec<RegionSkin>,
     first_frame: bool,
+    /// Under geomorphs: the further attributes they interpolate (see
+    /// `RegionSkin::morph_attributes`).
+    morph_groups: Vec<MorphGroup>,
 }
 
 impl SkinState {
@@ -152,6 +163,7 @@ impl SkinState {
             root_global: Affine3A::IDENTITY,
             regions: region_state,
             first_frame: true,
+            morph_groups: Vec::new(),
         }
     }
 
@@ -309,10 +321,60 @@ struct Job<'a> {
 }
 
 impl Job<'_> {
+    /// Under geomorphs: brings the further attributes of the vertices written up to date
+    /// where the morphs show them at `now`, and the bind-space tangents with them. Returns
+    /// whether the mesh has any to interpolate.
+    fn morph_attributes(&mut self, morphs: &Geomorphs, now: f32, global: &[u32]) -> bool {
+        let groups = morphs.attribute_groups();
+        let Some(last) = groups.last() else {
+            return false;
+        };
+        let stride = last.offset + last.len;
+        let r = &mut *self.region;
+        let n = self.source.positions.len();
+        if r.morph_attributes.len() != n * stride {
+            r.morph_attributes = vec![0.0; n * stride];
+        }
+        let tangent = groups.iter().find(|g| g.kind == MorphKind::Tangent);
+        if let (Some(_), Some(source)) = (tangent, &self.source.tangents)
+            && r.morph_tangents.len() != source.len()
+        {
+            r.morph_tangents.clone_from(source);
+        }
+        let mut values = Vec::with_capacity(stride);
+        for &v in &r.written {
+            let (v, g) = (v as usize, global[v as usize]);
+            values.clear();
+            morphs.write_vertex_attributes(g, Some(now), &mut values);
+            if let Some(slot) = r.morph_attributes.get_mut(v * stride..(v + 1) * stride)
+                && values.len() == stride
+            {
+                slot.copy_from_slice(&values);
+            }
+            if let (Some(t), Some(slot)) = (tangent, r.morph_tangents.get_mut(v))
+                && values.len() == stride
+            {
+                *slot = Vec4::from_slice(&values[t.offset..t.offset + 4]);
+            }
+        }
+        r.attributes_written = true;
+        true
+    }
+
     fn run(&mut self) {
         let r = &mut *self.region;
         r.written.clear();
         r.written.extend_from_slice(&r.referenced);
+        r.attributes_written = false;
+        let morphed = match self.morph {
+            Some((morphs, now, global)) => self.morph_attributes(morphs, now, global),
+            None => false,
+        };
+        let r = &mut *self.region;
+        let source_tangents = match &self.source.tangents {
+            Some(_) if morphed && !r.morph_tangents.is_empty() => Some(r.morph_tangents.as_slice()),
+            tangents => tangents.as_deref(),
+        };
         let (source_positions, source_normals) = match self.morph {
             Some((morphs, now, global)) => {
                 // Only the vertices written are read: those are brought up to date.
@@ -348,7 +410,7 @@ impl Job<'_> {
         let normals: &mut [Vec3] = bytemuck::cast_slice_mut(&mut r.normals);
         // Tangents turn with the same blended matrix as their vertex (the normal takes its
         // inverse transpose), as in Bevy's shader, which normalises both.
-        match &self.source.tangents {
+        match source_tangents {
             Some(tangents) => blend_with_tangents(
                 self.matrices,
                 source_positions,
@@ -418,6 +480,11 @@ fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
     for (_, regions, skin, morph) in instances.iter_mut() {
         let skin = &mut **skin;
         let morph = *morph;
+        if let Some((morphs, _)) = morph
+            && skin.morph_groups.len() != morphs.attribute_groups().len()
+        {
+            skin.morph_groups = morphs.attribute_groups().to_vec();
+        }
         for (r, state) in skin.regions.iter_mut().enumerate() {
             let region = &regions.regions()[r];
             let moved = skin.binding.region_joints[r]
@@ -541,6 +608,7 @@ impl SkinState {
                 swapped = state.indices_changed && swap_indices(mesh, &mut state.indices);
                 if !state.written.is_empty() {
                     state.swap_vertices(mesh);
+                    state.write_morph_attributes(mesh, &self.morph_groups);
                 }
             }
             if swapped {
@@ -558,6 +626,23 @@ impl SkinState {
 }
 
 impl RegionSkin {
+    /// Writes the further attributes of the vertices written where the morphs show them
+    /// (tangents went through the blend), when there are any this frame.
+    fn write_morph_attributes(&mut self, mesh: &mut Mesh, groups: &[MorphGroup]) {
+        let stride = groups.last().map_or(0, |g| g.offset + g.len);
+        if !std::mem::take(&mut self.attributes_written) || stride == 0 {
+            return;
+        }
+        let values = &self.morph_attributes;
+        for group in groups.iter().filter(|g| g.kind != MorphKind::Tangent) {
+            let records = self.written.iter().filter_map(|&v| {
+                let v = v as usize;
+                values.get(v * stride..(v + 1) * stride).map(|r| (v, r))
+            });
+            write_group_records(mesh, group, records);
+        }
+    }
+
     /// Swaps the blended positions and normals with the mesh's (see
     /// [`positions`](Self::positions)): no copy.
     fn swap_vertices(&mut self, mesh: &mut Mesh) {
