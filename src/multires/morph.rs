@@ -119,7 +119,7 @@ impl MorphAttributes {
         }
         for (k, a) in mesh.attributes.iter().enumerate() {
             let len = usize::from(a.format.components);
-            if a.format.scalar == Scalar::F32 && a.data.len() == n * 4 * len {
+            if a.format.scalar == Scalar::F32 && len > 0 && a.data.len() == n * 4 * len {
                 add(MorphKind::Attribute(a.without_data()), len, Some(k));
             }
         }
@@ -221,8 +221,9 @@ pub(crate) struct MorphTables {
     /// Per position: the step of its sequence that removes it (`u32::MAX`: never) and the
     /// position it goes onto.
     parent: Vec<(u32, u32)>,
-    /// Per vertex: the step that moves it and the vertex its corners go to, for normals
-    /// (`u32::MAX`: no recorded move).
+    /// Per vertex: the step that moves it and the vertex its corners go to, for normals and
+    /// further attributes (`u32::MAX`: no recorded move), from the records of the sequence
+    /// that moves its position only.
     vertex_parent: Vec<(u32, u32)>,
     /// Per sequence: the triangle count of each level.
     pub(crate) counts: Vec<Vec<usize>>,

@@ -407,3 +407,64 @@ fn check_attributes_in_motion(app: &mut App, model: Entity, source: &IndexedMesh
     }
     assert!(moving > 100, "only {moving} vertices drawn in motion");
 }
+
+/// A skinned vertex that leaves its level halfway to its stand-in's attributes is back at its
+/// own once the morphs rest: after geomorphs end in the middle of a coarsening, a refinement
+/// without them draws every vertex with its source attributes.
+#[test]
+fn skinned_vertices_come_back_with_their_own_attributes_after_geomorphs() {
+    let mut source = placed_sphere();
+    let n = source.positions.len();
+    source.joints = Some(vec![[0; 4]; n]);
+    source.weights = Some(vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let asset = MultiresMesh::from_skinned(&source, &[Mat4::IDENTITY], 0.01).expect("builds");
+    let (mut app, handle) = attribute_app(asset);
+    let joint = app.world_mut().spawn(Transform::default()).id();
+    let model = app
+        .world_mut()
+        .spawn((
+            MultiresModel(handle),
+            MultiresSkin {
+                joints: vec![joint],
+            },
+            Geomorph(0.5),
+            Transform::default(),
+        ))
+        .id();
+    for _ in 0..3 {
+        app.update();
+    }
+    // Coarsen; halfway through, the morphs end; then refine without them.
+    app.world_mut().resource_mut::<PolygonBudget>().total = 150;
+    for _ in 0..20 {
+        app.update();
+    }
+    app.world_mut().entity_mut(model).remove::<Geomorph>();
+    for _ in 0..10 {
+        app.update();
+    }
+    app.world_mut().resource_mut::<PolygonBudget>().total = 1_000_000;
+    for _ in 0..3 {
+        app.update();
+    }
+    let instance = app.world().get::<MultiresInstance>(model).unwrap();
+    let mut checked = 0;
+    for &e in instance.region_entities() {
+        let drawn = from_bevy_mesh(mesh_of(&app, e)).expect("a region mesh");
+        let ids = drawn.attribute(988_540_920).unwrap();
+        for &v in &drawn.indices {
+            let v = v as usize;
+            let g = u32::from_le_bytes(ids.record(v).try_into().unwrap()) as usize;
+            let (uv, own) = (
+                drawn.uvs.as_ref().unwrap()[v],
+                source.uvs.as_ref().unwrap()[g],
+            );
+            assert!(
+                uv.distance(own) < 1e-5,
+                "vertex {g}: UV {uv}, its own {own}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 3 * source.triangle_count(), "full detail");
+}

@@ -4,7 +4,8 @@
 //! [`VariableGeomorphs`]).
 //!
 //! - On the CPU, every mesh whose vertices move now or moved last frame is written whole,
-//!   positions and normals where the morphs show them (once more at rest after a morph).
+//!   positions, normals and further attributes (UVs, tangents, `f32` attributes) where the
+//!   morphs show them (once more at rest after a morph).
 //! - With a material that interpolates on the GPU ([`GpuGeomorph`](super::GpuGeomorph)), a
 //!   vertex is written once, when a morph starts on it, with the morph attributes
 //!   ([`ATTRIBUTE_MORPH_FROM`], [`ATTRIBUTE_MORPH_NORMAL_FROM`], and for UVs and tangents
@@ -251,8 +252,8 @@ impl MorphOutput {
         duration == 0.0 && !self.moved.contains(&true)
     }
 
-    /// Stages the vertices to write for `Upload`. On the CPU: the positions and normals of
-    /// every mesh whose vertices move now or moved last frame. On the GPU: the runs of each
+    /// Stages the vertices to write for `Upload`. On the CPU: the positions, normals and
+    /// further attributes of every mesh whose vertices move now or moved last frame. On the GPU: the runs of each
     /// mesh's vertices that a morph started on, with their morph attributes (the whole mesh
     /// when it must be written again).
     pub(crate) fn stage(&mut self, source: &mut impl MorphSource, clock: Clock) {
@@ -289,8 +290,9 @@ impl MorphOutput {
                 continue;
             };
             run.stage_morphs(lo, source.vertex_morphs(m, lo, hi), duration, clock);
-            // The shaders interpolate positions and normals only: every further attribute
-            // is its own (written with the whole mesh, which the CPU may have morphed).
+            // The shaders interpolate positions, normals, UVs and tangents only: every other
+            // further attribute is its own (written with the whole mesh, which the CPU may
+            // have morphed; UVs and tangents then take their morphs' ends below).
             if rewrite {
                 source.write_attributes(m, None, &mut run.attributes);
             }
@@ -352,8 +354,8 @@ impl MorphOutput {
 }
 
 /// A run of a mesh's vertices that `Upload` writes under geomorphs, from vertex `first`
-/// (`ready` when new): positions and normals, and on the GPU the morph attributes (empty:
-/// written from the CPU, at rest).
+/// (`ready` when new): positions, normals and further attributes, and on the GPU the morph
+/// attributes (empty: written from the CPU, at rest).
 #[derive(Clone, Debug, Default)]
 struct VertexRun {
     first: u32,
@@ -454,27 +456,33 @@ impl VertexRun {
             }
         }
         // On the GPU, the UVs' and tangents' ends and starts (after the further attributes,
-        // which a whole mesh's run writes as their own; empty on the CPU path).
-        for (attribute, values) in [
-            (Mesh::ATTRIBUTE_UV_0, &self.uv_to),
-            (ATTRIBUTE_MORPH_UV_FROM, &self.uv_from),
-        ] {
-            if let Ok(Some(VertexAttributeValues::Float32x2(slots))) =
-                mesh.try_attribute_mut_option(attribute)
-                && let Some(slots) = slots.get_mut(first..first + values.len())
-            {
-                slots.copy_from_slice(values);
+        // which a whole mesh's run writes as their own; empty on the CPU path), where the
+        // morphs have them.
+        let has = |kind: MorphKind| groups.iter().any(|g| g.kind == kind);
+        if has(MorphKind::Uv) {
+            for (attribute, values) in [
+                (Mesh::ATTRIBUTE_UV_0, &self.uv_to),
+                (ATTRIBUTE_MORPH_UV_FROM, &self.uv_from),
+            ] {
+                if let Ok(Some(VertexAttributeValues::Float32x2(slots))) =
+                    mesh.try_attribute_mut_option(attribute)
+                    && let Some(slots) = slots.get_mut(first..first + values.len())
+                {
+                    slots.copy_from_slice(values);
+                }
             }
         }
-        for (attribute, values) in [
-            (Mesh::ATTRIBUTE_TANGENT, &self.tangent_to),
-            (ATTRIBUTE_MORPH_TANGENT_FROM, &self.tangent_from),
-        ] {
-            if let Ok(Some(VertexAttributeValues::Float32x4(slots))) =
-                mesh.try_attribute_mut_option(attribute)
-                && let Some(slots) = slots.get_mut(first..first + values.len())
-            {
-                slots.copy_from_slice(values);
+        if has(MorphKind::Tangent) {
+            for (attribute, values) in [
+                (Mesh::ATTRIBUTE_TANGENT, &self.tangent_to),
+                (ATTRIBUTE_MORPH_TANGENT_FROM, &self.tangent_from),
+            ] {
+                if let Ok(Some(VertexAttributeValues::Float32x4(slots))) =
+                    mesh.try_attribute_mut_option(attribute)
+                    && let Some(slots) = slots.get_mut(first..first + values.len())
+                {
+                    slots.copy_from_slice(values);
+                }
             }
         }
         for (attribute, values) in [
@@ -525,8 +533,8 @@ pub(crate) fn write_group_records<'a>(
     match mesh.try_attribute_mut_option(attribute) {
         Ok(Some(VertexAttributeValues::Float32(slots))) => {
             for (v, r) in records {
-                if let Some(slot) = slots.get_mut(v) {
-                    *slot = r[0];
+                if let (Some(slot), Some(&x)) = (slots.get_mut(v), r.first()) {
+                    *slot = x;
                 }
             }
         }

@@ -321,9 +321,12 @@ struct Job<'a> {
 }
 
 impl Job<'_> {
-    /// Under geomorphs: brings the further attributes of the vertices written up to date
-    /// where the morphs show them at `now`, and the bind-space tangents with them. Returns
-    /// whether the mesh has any to interpolate.
+    /// Under geomorphs: brings the further attributes of every vertex of the region up to
+    /// date where the morphs show them at `now` (not only the vertices written: one left
+    /// out when its level went, halfway to its stand-in's values, must be back at its own
+    /// by the passes at rest, which write these directly, without a second buffer), and the
+    /// bind-space tangents of the vertices written with them. Returns whether the mesh has
+    /// any to interpolate.
     fn morph_attributes(&mut self, morphs: &Geomorphs, now: f32, global: &[u32]) -> bool {
         let groups = morphs.attribute_groups();
         let Some(last) = groups.last() else {
@@ -332,29 +335,27 @@ impl Job<'_> {
         let stride = last.offset + last.len;
         let r = &mut *self.region;
         let n = self.source.positions.len();
-        if r.morph_attributes.len() != n * stride {
-            r.morph_attributes = vec![0.0; n * stride];
-        }
         let tangent = groups.iter().find(|g| g.kind == MorphKind::Tangent);
         if let (Some(_), Some(source)) = (tangent, &self.source.tangents)
             && r.morph_tangents.len() != source.len()
         {
             r.morph_tangents.clone_from(source);
         }
-        let mut values = Vec::with_capacity(stride);
-        for &v in &r.written {
-            let (v, g) = (v as usize, global[v as usize]);
-            values.clear();
-            morphs.write_vertex_attributes(g, Some(now), &mut values);
-            if let Some(slot) = r.morph_attributes.get_mut(v * stride..(v + 1) * stride)
-                && values.len() == stride
-            {
-                slot.copy_from_slice(&values);
-            }
-            if let (Some(t), Some(slot)) = (tangent, r.morph_tangents.get_mut(v))
-                && values.len() == stride
-            {
-                *slot = Vec4::from_slice(&values[t.offset..t.offset + 4]);
+        r.morph_attributes.clear();
+        for &g in global {
+            morphs.write_vertex_attributes(g, Some(now), &mut r.morph_attributes);
+        }
+        if r.morph_attributes.len() != n * stride {
+            r.morph_attributes.clear();
+            return false;
+        }
+        if let Some(t) = tangent {
+            for &v in &r.written {
+                let v = v as usize;
+                if let Some(slot) = r.morph_tangents.get_mut(v) {
+                    let at = v * stride + t.offset;
+                    *slot = Vec4::from_slice(&r.morph_attributes[at..at + 4]);
+                }
             }
         }
         r.attributes_written = true;
@@ -626,19 +627,15 @@ impl SkinState {
 }
 
 impl RegionSkin {
-    /// Writes the further attributes of the vertices written where the morphs show them
-    /// (tangents went through the blend), when there are any this frame.
+    /// Writes the further attributes of every vertex where the morphs show them (tangents
+    /// went through the blend), when there are any this frame.
     fn write_morph_attributes(&mut self, mesh: &mut Mesh, groups: &[MorphGroup]) {
         let stride = groups.last().map_or(0, |g| g.offset + g.len);
         if !std::mem::take(&mut self.attributes_written) || stride == 0 {
             return;
         }
-        let values = &self.morph_attributes;
         for group in groups.iter().filter(|g| g.kind != MorphKind::Tangent) {
-            let records = self.written.iter().filter_map(|&v| {
-                let v = v as usize;
-                values.get(v * stride..(v + 1) * stride).map(|r| (v, r))
-            });
+            let records = self.morph_attributes.chunks_exact(stride).enumerate();
             write_group_records(mesh, group, records);
         }
     }
