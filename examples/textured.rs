@@ -71,8 +71,9 @@ struct Args {
     #[arg(long)]
     no_peer: bool,
     /// Draw a procedural asset instead of MODEL: a bumpy sphere with vertex colours (bands
-    /// that cross its tessellation) and a second UV set, written as `procedural.glb` into
-    /// the output folder.
+    /// that cross its tessellation), a second UV set and a custom attribute (`_TINT`, stripes
+    /// of brightness that a material of the example's reads), written as `procedural.glb`
+    /// into the output folder.
     #[arg(long)]
     procedural: bool,
     /// Our build's `BuildOptions::normal_weight` (default: the crate's).
@@ -132,7 +133,7 @@ fn run(args: &Args) -> Result<(), String> {
     options.uv_weight = args.uv_weight.unwrap_or(options.uv_weight);
     options.color_weight = args.color_weight.unwrap_or(options.color_weight);
     let scene = MultiresScene::default().with_build_options(options.clone());
-    let mut stage = Stage::new(&root, &file, args.size, scene)?;
+    let mut stage = Stage::new(&root, &file, args.size, scene, args.procedural)?;
     let (center, radius) = stage.bounds()?;
     let full = stage.full_triangles();
     let mut views = Vec::new();
@@ -250,11 +251,21 @@ fn run(args: &Args) -> Result<(), String> {
 
 impl Stage {
     /// Loads the scene twice, waits until both are loaded with their textures and the
-    /// `MultiresScene` is converted.
-    fn new(root: &Path, file: &str, size: u32, multires: MultiresScene) -> Result<Self, String> {
-        let mut app = common::offscreen_app(Some(root));
+    /// `MultiresScene` is converted. With `tint`, every mesh is drawn with the
+    /// [`common::tint::TintMaterial`] that reads the custom attribute `_TINT`.
+    fn new(
+        root: &Path,
+        file: &str,
+        size: u32,
+        multires: MultiresScene,
+        tint: bool,
+    ) -> Result<Self, String> {
+        let mut app = common::offscreen_app_with_gltf(Some(root), common::tint::gltf_plugin());
         app.add_plugins(AslodPlugin::default())
             .insert_resource(ClearColor(Color::srgb(0.1, 0.1, 0.12)));
+        if tint {
+            common::tint::add_tint(&mut app);
+        }
         app.finish();
         app.cleanup();
         let captured = Captured::default();
@@ -629,11 +640,17 @@ fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
 
 /// A bumpy UV sphere (48 × 96 quads, UV seam) as a GLB: positions, normals, `TEXCOORD_0`,
 /// `TEXCOORD_1` (the same, halved), `COLOR_0` (RGBA bands around the sphere that cross its
-/// rows at an angle), a white material.
+/// rows at an angle), `_TINT` (a brightness: 16 stripes from pole to pole), a white material.
 fn procedural_glb() -> Vec<u8> {
     let (rings, segments) = (48u32, 96u32);
-    let (mut positions, mut normals, mut uv0, mut uv1, mut colors) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut positions, mut normals, mut uv0, mut uv1, mut colors, mut tints) = (
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+    );
     for r in 0..=rings {
         let v = r as f32 / rings as f32;
         let phi = std::f32::consts::PI * v;
@@ -648,6 +665,7 @@ fn procedural_glb() -> Vec<u8> {
             uv1.push([u * 0.5, v * 0.5]);
             let band = ((3.0 * theta + 6.0 * phi).sin() * 0.5 + 0.5).round();
             colors.push([0.9, 0.25 + 0.6 * band, 0.2 + 0.5 * (1.0 - band), 1.0]);
+            tints.push(if (s / 6) % 2 == 0 { 1.0f32 } else { 0.55 });
         }
     }
     let mut indices = Vec::new();
@@ -683,6 +701,7 @@ fn procedural_glb() -> Vec<u8> {
     push(floats(&uv1.concat()));
     push(floats(&colors.concat()));
     push(indices.iter().flat_map(|i| i.to_le_bytes()).collect());
+    push(floats(&tints));
     let n = positions.len();
     let (lo, hi) = positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -696,7 +715,8 @@ fn procedural_glb() -> Vec<u8> {
         "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
             "metallicFactor": 0.0, "roughnessFactor": 0.5}}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1,
-            "TEXCOORD_0": 2, "TEXCOORD_1": 3, "COLOR_0": 4}, "indices": 5, "material": 0}]}],
+            "TEXCOORD_0": 2, "TEXCOORD_1": 3, "COLOR_0": 4, "_TINT": 6}, "indices": 5,
+            "material": 0}]}],
         "accessors": [
             {"bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
              "min": lo.to_array(), "max": hi.to_array()},
@@ -705,6 +725,7 @@ fn procedural_glb() -> Vec<u8> {
             {"bufferView": 3, "componentType": 5126, "count": n, "type": "VEC2"},
             {"bufferView": 4, "componentType": 5126, "count": n, "type": "VEC4"},
             {"bufferView": 5, "componentType": 5125, "count": indices.len(), "type": "SCALAR"},
+            {"bufferView": 6, "componentType": 5126, "count": n, "type": "SCALAR"},
         ],
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],

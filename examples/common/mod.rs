@@ -5,6 +5,7 @@
 pub mod chart;
 pub mod stats;
 pub mod terrain;
+pub mod tint;
 
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::primitives::Aabb;
@@ -58,12 +59,18 @@ pub fn add_default_plugins(app: &mut App, headless: bool, title: &str, asset_roo
 /// read from `asset_root` when given, and a clock of exactly 1/60 s per frame. The caller adds
 /// its own plugins, then `finish` and `cleanup`.
 pub fn offscreen_app(asset_root: Option<&Path>) -> App {
+    offscreen_app_with_gltf(asset_root, bevy::gltf::GltfPlugin::default())
+}
+
+/// [`offscreen_app`] with a glTF loader of one's own (custom vertex attributes).
+pub fn offscreen_app_with_gltf(asset_root: Option<&Path>, gltf: bevy::gltf::GltfPlugin) -> App {
     let mut assets = AssetPlugin::default();
     if let Some(root) = asset_root {
         assets.file_path = root.to_string_lossy().into_owned();
     }
     let plugins = DefaultPlugins
         .set(assets)
+        .set(gltf)
         .set(WindowPlugin {
             primary_window: None,
             exit_condition: ExitCondition::DontExit,

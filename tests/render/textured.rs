@@ -3,7 +3,8 @@
 //! `FullDetail` it draws like plain Bevy, normal map and occlusion map included (without its
 //! tangents 1.6% of the pixels differ), and at 5% of its triangles it draws with every
 //! attribute present and finite, and lit and textured as the reference is. The same for a
-//! generated sphere with vertex colours and a second UV set.
+//! generated sphere with vertex colours, a second UV set and a custom attribute that the
+//! example's material reads (darker stripes where it is lost).
 
 use super::example_run::{example_binary, require_vulkan};
 use std::path::Path;
@@ -17,10 +18,11 @@ fn a_textured_asset_draws_like_plain_bevy_at_full_detail() {
     check("textured", &[]);
 }
 
-/// Vertex colours and a second UV set (the example's generated sphere, colour bands across its
-/// rows) draw like plain Bevy too.
+/// Vertex colours, a second UV set and a custom attribute read by a material (the example's
+/// generated sphere: colour bands across its rows, stripes of its `_TINT`) draw like plain
+/// Bevy too.
 #[test]
-fn vertex_colours_draw_like_plain_bevy_at_full_detail() {
+fn vertex_colours_and_a_custom_attribute_draw_like_plain_bevy_at_full_detail() {
     if !require_vulkan("render") {
         return;
     }
