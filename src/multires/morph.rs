@@ -244,11 +244,6 @@ impl MorphTables {
         self
     }
 
-    /// The further attributes morphs interpolate, when the mesh has any.
-    pub(crate) fn attributes(&self) -> Option<&MorphAttributes> {
-        self.attributes.as_ref()
-    }
-
     /// The tables of a mesh whose vertices (`positions`, `normals`) are split among
     /// `sequences`: each a progressive mesh and the mesh vertex of each of its vertices
     /// (`None`: the same numbers). `region_of` gives each vertex's sequence.
@@ -643,6 +638,15 @@ impl Motion {
             }
         }
         morph
+    }
+
+    /// The further attributes morphs interpolate, in the order
+    /// [`write_attributes`](Self::write_attributes) writes them; empty when none.
+    pub(crate) fn attribute_groups(&self) -> &[MorphGroup] {
+        self.tables
+            .attributes
+            .as_ref()
+            .map_or(&[], |a| a.groups.as_slice())
     }
 
     /// Whether the mesh has normals.

@@ -353,9 +353,6 @@ impl VariableGeomorphs {
     /// order [`write_attributes`](Self::write_attributes) writes them; empty when none.
     #[must_use]
     pub fn attribute_groups(&self) -> &[MorphGroup] {
-        self.motion
-            .tables
-            .attributes()
-            .map_or(&[], |a| a.groups.as_slice())
+        self.motion.attribute_groups()
     }
 }

@@ -477,10 +477,7 @@ impl Geomorphs {
     /// order [`write_attributes`](Self::write_attributes) writes them; empty when none.
     #[must_use]
     pub fn attribute_groups(&self) -> &[MorphGroup] {
-        self.motion
-            .tables
-            .attributes()
-            .map_or(&[], |a| a.groups.as_slice())
+        self.motion.attribute_groups()
     }
 }
 

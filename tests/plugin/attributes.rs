@@ -36,16 +36,7 @@ fn source() -> IndexedMesh {
     for (t, n) in mesh.tangents.as_mut().unwrap().iter_mut().zip(&normals) {
         *t = n.cross(Vec3::Y).normalize_or(Vec3::X).extend(t.w);
     }
-    let n = mesh.positions.len() as u32;
-    mesh.attributes.push(VertexAttribute {
-        name: SOURCE_ID.into(),
-        id: 988_540_920,
-        format: AttributeFormat {
-            scalar: Scalar::U32,
-            components: 1,
-        },
-        data: (0..n).flat_map(u32::to_le_bytes).collect(),
-    });
+    mesh.attributes.push(source_ids(mesh.positions.len()));
     mesh.validate().expect("the test mesh is valid");
     mesh
 }
@@ -295,18 +286,9 @@ fn placed_sphere() -> IndexedMesh {
             .collect(),
     );
     let place: Vec<[f32; 3]> = source.positions.iter().map(|p| p.to_array()).collect();
-    let n = source.positions.len() as u32;
     source.attributes = vec![
         VertexAttribute::from_f32("Vertex_Place", 988_540_921, &place),
-        VertexAttribute {
-            name: SOURCE_ID.into(),
-            id: 988_540_920,
-            format: AttributeFormat {
-                scalar: Scalar::U32,
-                components: 1,
-            },
-            data: (0..n).flat_map(u32::to_le_bytes).collect(),
-        },
+        source_ids(source.positions.len()),
     ];
     source.tangents = Some(
         source
@@ -316,6 +298,43 @@ fn placed_sphere() -> IndexedMesh {
             .collect(),
     );
     source
+}
+
+/// Each vertex's source id, as the attribute `Vertex_SourceId`.
+fn source_ids(n: usize) -> VertexAttribute {
+    VertexAttribute {
+        name: SOURCE_ID.into(),
+        id: 988_540_920,
+        format: AttributeFormat {
+            scalar: Scalar::U32,
+            components: 1,
+        },
+        data: (0..n as u32).flat_map(u32::to_le_bytes).collect(),
+    }
+}
+
+/// `source` skinned to one joint (one rigid region) in its bind pose, spawned with
+/// `Geomorph(seconds)`.
+fn one_joint_model(source: &IndexedMesh, seconds: f32) -> (App, Entity) {
+    let mut source = source.clone();
+    let n = source.positions.len();
+    source.joints = Some(vec![[0; 4]; n]);
+    source.weights = Some(vec![[1.0, 0.0, 0.0, 0.0]; n]);
+    let asset = MultiresMesh::from_skinned(&source, &[Mat4::IDENTITY], 0.01).expect("builds");
+    let (mut app, handle) = attribute_app(asset);
+    let joint = app.world_mut().spawn(Transform::default()).id();
+    let model = app
+        .world_mut()
+        .spawn((
+            MultiresModel(handle),
+            MultiresSkin {
+                joints: vec![joint],
+            },
+            Geomorph(seconds),
+            Transform::default(),
+        ))
+        .id();
+    (app, model)
 }
 
 /// Moving vertices carry their `f32` attributes with them (CPU geomorphs): on a
@@ -341,24 +360,8 @@ fn geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
 /// tangents are skinned from where the morphs show them.
 #[test]
 fn skinned_geomorphs_in_motion_carry_uvs_and_float_attributes_along() {
-    let mut source = placed_sphere();
-    let n = source.positions.len();
-    source.joints = Some(vec![[0; 4]; n]);
-    source.weights = Some(vec![[1.0, 0.0, 0.0, 0.0]; n]);
-    let asset = MultiresMesh::from_skinned(&source, &[Mat4::IDENTITY], 0.01).expect("builds");
-    let (mut app, handle) = attribute_app(asset);
-    let joint = app.world_mut().spawn(Transform::default()).id();
-    let model = app
-        .world_mut()
-        .spawn((
-            MultiresModel(handle),
-            MultiresSkin {
-                joints: vec![joint],
-            },
-            Geomorph(1.0),
-            Transform::default(),
-        ))
-        .id();
+    let source = placed_sphere();
+    let (mut app, model) = one_joint_model(&source, 1.0);
     check_attributes_in_motion(&mut app, model, &source);
 }
 
@@ -413,24 +416,8 @@ fn check_attributes_in_motion(app: &mut App, model: Entity, source: &IndexedMesh
 /// without them draws every vertex with its source attributes.
 #[test]
 fn skinned_vertices_come_back_with_their_own_attributes_after_geomorphs() {
-    let mut source = placed_sphere();
-    let n = source.positions.len();
-    source.joints = Some(vec![[0; 4]; n]);
-    source.weights = Some(vec![[1.0, 0.0, 0.0, 0.0]; n]);
-    let asset = MultiresMesh::from_skinned(&source, &[Mat4::IDENTITY], 0.01).expect("builds");
-    let (mut app, handle) = attribute_app(asset);
-    let joint = app.world_mut().spawn(Transform::default()).id();
-    let model = app
-        .world_mut()
-        .spawn((
-            MultiresModel(handle),
-            MultiresSkin {
-                joints: vec![joint],
-            },
-            Geomorph(0.5),
-            Transform::default(),
-        ))
-        .id();
+    let source = placed_sphere();
+    let (mut app, model) = one_joint_model(&source, 0.5);
     for _ in 0..3 {
         app.update();
     }

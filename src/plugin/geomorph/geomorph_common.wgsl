@@ -37,3 +37,9 @@ fn uv(first: vec2<f32>, last: vec2<f32>, t: f32) -> vec2<f32> {
     }
     return first + (last - first) * t;
 }
+
+// The tangent at progress `t`: its direction as a normal's from `first`, its handedness the
+// end's (`last.w`).
+fn tangent(first: vec3<f32>, last: vec4<f32>, t: f32) -> vec4<f32> {
+    return vec4<f32>(normal(first, last.xyz, t), last.w);
+}

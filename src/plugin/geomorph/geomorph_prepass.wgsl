@@ -78,10 +78,7 @@ fn vertex(vertex_in: Vertex) -> VertexOutput {
 #endif
 #ifdef ASLOD_GEOMORPH_TANGENT
 #ifdef VERTEX_TANGENTS
-    vertex.tangent = vec4<f32>(
-        geomorph::normal(vertex.morph_tangent_from.xyz, vertex.tangent.xyz, t),
-        vertex.tangent.w
-    );
+    vertex.tangent = geomorph::tangent(vertex.morph_tangent_from.xyz, vertex.tangent, t);
 #endif
 #endif
 #endif

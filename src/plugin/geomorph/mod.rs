@@ -12,5 +12,5 @@ pub use material::{
     ATTRIBUTE_MORPH_UV_FROM, GeomorphExtension, GeomorphMaterial, GeomorphMaterialPlugin,
     GpuGeomorph,
 };
-pub(crate) use output::{Clock, LevelMorphs, MorphChange, MorphOutput, write_group_records};
+pub(crate) use output::{Clock, LevelMorphs, MorphChange, MorphOutput, MorphTarget};
 pub(crate) use regions::{RegionGeomorphs, RegionGrant};

@@ -20,7 +20,7 @@ use crate::plugin::render::UploadTarget;
 use crate::refine::VariableGeomorphs;
 use crate::regions::{Geomorphs, MorphGroup, MorphKind, RegionMesh, VertexMorph};
 use bevy::asset::AssetId;
-use bevy::mesh::VertexAttributeValues;
+use bevy::mesh::{MeshVertexAttribute, VertexAttributeValues};
 use bevy::prelude::*;
 
 /// The time of a frame: `Time`'s elapsed seconds, and the same wrapped as the shaders see it.
@@ -218,7 +218,7 @@ pub(crate) struct MorphOutput {
     more: Vec<(u32, VertexRun)>,
     /// The further attributes the runs carry (UVs, tangents, `f32` attributes), as the
     /// source gave them at the first `stage`.
-    groups: Option<Vec<MorphGroup>>,
+    targets: Option<Vec<MorphTarget>>,
 }
 
 impl MorphOutput {
@@ -230,7 +230,7 @@ impl MorphOutput {
             moved: vec![gpu; meshes],
             runs: vec![VertexRun::default(); meshes],
             more: Vec::new(),
-            groups: None,
+            targets: None,
         }
     }
 
@@ -257,8 +257,8 @@ impl MorphOutput {
     /// mesh's vertices that a morph started on, with their morph attributes (the whole mesh
     /// when it must be written again).
     pub(crate) fn stage(&mut self, source: &mut impl MorphSource, clock: Clock) {
-        if self.groups.is_none() {
-            self.groups = Some(source.attribute_groups().to_vec());
+        if self.targets.is_none() {
+            self.targets = Some(MorphTarget::all(source.attribute_groups()));
         }
         if !self.gpu {
             self.more.clear();
@@ -343,7 +343,7 @@ impl MorphOutput {
             if run.ready
                 && let Some(&id) = ids.get(m)
                 && let Some(mesh) = target.mesh(id)
-                && let Some(written) = run.write(mesh, self.groups.as_deref().unwrap_or(&[]))
+                && let Some(written) = run.write(mesh, self.targets.as_deref().unwrap_or(&[]))
                 && !relayout
             {
                 // (Counted whole once: when its indices changed too, or by its first run.)
@@ -361,7 +361,7 @@ struct VertexRun {
     first: u32,
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
-    /// The further attributes (`MorphOutput::groups`' values per vertex), when the run
+    /// The further attributes (`MorphOutput::targets`' values per vertex), when the run
     /// writes them.
     attributes: Vec<f32>,
     from: Vec<[f32; 4]>,
@@ -427,19 +427,20 @@ impl VertexRun {
         self.ready = true;
     }
 
-    /// Writes the run into `mesh` (its further attributes as `groups` says); returns the
+    /// Writes the run into `mesh` (its further attributes into `targets`); returns the
     /// vertices written (first and last), or `None` when nothing was new or the mesh lacks
     /// room for it.
-    fn write(&mut self, mesh: &mut Mesh, groups: &[MorphGroup]) -> Option<[u32; 2]> {
+    fn write(&mut self, mesh: &mut Mesh, targets: &[MorphTarget]) -> Option<[u32; 2]> {
         if !std::mem::take(&mut self.ready) {
             return None;
         }
         let (first, n) = (self.first as usize, self.positions.len());
         let mut written = true;
-        let stride = groups.last().map_or(0, |g| g.offset + g.len);
+        let stride = MorphTarget::stride(targets);
         if stride > 0 && self.attributes.len() == n * stride {
-            for group in groups {
-                write_group(mesh, group, &self.attributes, stride, first);
+            for target in targets {
+                let records = self.attributes.chunks_exact(stride).enumerate();
+                target.write(mesh, records.map(|(i, v)| (first + i, v)));
             }
         }
         for (attribute, values) in [
@@ -458,32 +459,19 @@ impl VertexRun {
         // On the GPU, the UVs' and tangents' ends and starts (after the further attributes,
         // which a whole mesh's run writes as their own; empty on the CPU path), where the
         // morphs have them.
-        let has = |kind: MorphKind| groups.iter().any(|g| g.kind == kind);
+        let has = |kind: MorphKind| targets.iter().any(|t| t.group.kind == kind);
         if has(MorphKind::Uv) {
-            for (attribute, values) in [
-                (Mesh::ATTRIBUTE_UV_0, &self.uv_to),
-                (ATTRIBUTE_MORPH_UV_FROM, &self.uv_from),
-            ] {
-                if let Ok(Some(VertexAttributeValues::Float32x2(slots))) =
-                    mesh.try_attribute_mut_option(attribute)
-                    && let Some(slots) = slots.get_mut(first..first + values.len())
-                {
-                    slots.copy_from_slice(values);
-                }
-            }
+            write_floats(mesh, Mesh::ATTRIBUTE_UV_0, run_records(first, &self.uv_to));
+            write_floats(
+                mesh,
+                ATTRIBUTE_MORPH_UV_FROM,
+                run_records(first, &self.uv_from),
+            );
         }
         if has(MorphKind::Tangent) {
-            for (attribute, values) in [
-                (Mesh::ATTRIBUTE_TANGENT, &self.tangent_to),
-                (ATTRIBUTE_MORPH_TANGENT_FROM, &self.tangent_from),
-            ] {
-                if let Ok(Some(VertexAttributeValues::Float32x4(slots))) =
-                    mesh.try_attribute_mut_option(attribute)
-                    && let Some(slots) = slots.get_mut(first..first + values.len())
-                {
-                    slots.copy_from_slice(values);
-                }
-            }
+            let (to, from) = (&self.tangent_to, &self.tangent_from);
+            write_floats(mesh, Mesh::ATTRIBUTE_TANGENT, run_records(first, to));
+            write_floats(mesh, ATTRIBUTE_MORPH_TANGENT_FROM, run_records(first, from));
         }
         for (attribute, values) in [
             (ATTRIBUTE_MORPH_FROM, &self.from),
@@ -508,28 +496,55 @@ impl VertexRun {
     }
 }
 
-/// Writes one further attribute of a run (`values`: `stride` per vertex, the group's at its
-/// offset) into `mesh` from vertex `first`, when the mesh has it as `f32`s.
-fn write_group(mesh: &mut Mesh, group: &MorphGroup, values: &[f32], stride: usize, first: usize) {
-    let records = values.chunks_exact(stride).enumerate();
-    write_group_records(mesh, group, records.map(|(i, v)| (first + i, v)));
+/// A further attribute that morphs interpolate, with the Bevy attribute it is written to
+/// (found once, not per frame: a custom attribute's name is interned under a lock).
+#[derive(Clone, Debug)]
+pub(crate) struct MorphTarget {
+    pub(crate) group: MorphGroup,
+    attribute: MeshVertexAttribute,
 }
 
-/// Writes one further attribute into `mesh`: each `(vertex, values)` of `records` holds the
-/// vertex's values for every group, the group's at its offset. Nothing when the mesh does
-/// not have the attribute as `f32`s.
-pub(crate) fn write_group_records<'a>(
+impl MorphTarget {
+    /// The targets of `groups`, in their order.
+    pub(crate) fn all(groups: &[MorphGroup]) -> Vec<Self> {
+        groups
+            .iter()
+            .map(|group| Self {
+                attribute: match &group.kind {
+                    MorphKind::Uv => Mesh::ATTRIBUTE_UV_0,
+                    MorphKind::Tangent => Mesh::ATTRIBUTE_TANGENT,
+                    MorphKind::Attribute(a) => crate::bevy_mesh::bevy_attribute(a),
+                },
+                group: group.clone(),
+            })
+            .collect()
+    }
+
+    /// Values per vertex of `targets` together.
+    pub(crate) fn stride(targets: &[Self]) -> usize {
+        targets.last().map_or(0, |t| t.group.offset + t.group.len)
+    }
+
+    /// Writes the attribute into `mesh`: each `(vertex, values)` of `records` holds the
+    /// vertex's values for every target, this one's at its offset.
+    pub(crate) fn write<'a>(
+        &self,
+        mesh: &mut Mesh,
+        records: impl Iterator<Item = (usize, &'a [f32])>,
+    ) {
+        let range = self.group.offset..self.group.offset + self.group.len;
+        let records = records.filter_map(|(v, r)| r.get(range.clone()).map(|r| (v, r)));
+        write_floats(mesh, self.attribute, records);
+    }
+}
+
+/// Writes `records` (a vertex and its values) into `mesh`'s `attribute`, when the mesh has it
+/// as `f32`s of as many components; vertices past its end are left out.
+fn write_floats<'a>(
     mesh: &mut Mesh,
-    group: &MorphGroup,
+    attribute: MeshVertexAttribute,
     records: impl Iterator<Item = (usize, &'a [f32])>,
 ) {
-    let attribute = match &group.kind {
-        MorphKind::Uv => Mesh::ATTRIBUTE_UV_0,
-        MorphKind::Tangent => Mesh::ATTRIBUTE_TANGENT,
-        MorphKind::Attribute(a) => crate::bevy_mesh::bevy_attribute(a),
-    };
-    let range = group.offset..group.offset + group.len;
-    let records = records.filter_map(|(v, r)| r.get(range.clone()).map(|r| (v, r)));
     match mesh.try_attribute_mut_option(attribute) {
         Ok(Some(VertexAttributeValues::Float32(slots))) => {
             for (v, r) in records {
@@ -555,6 +570,17 @@ fn copy_records<'a, const N: usize>(
             *slot = r;
         }
     }
+}
+
+/// `values` as the records of the vertices from `first` on.
+fn run_records<const N: usize>(
+    first: usize,
+    values: &[[f32; N]],
+) -> impl Iterator<Item = (usize, &[f32])> {
+    values
+        .iter()
+        .enumerate()
+        .map(move |(i, v)| (first + i, &v[..]))
 }
 
 /// Gives a mesh the morph attributes, every vertex at rest.

@@ -21,13 +21,13 @@ pub(crate) mod binding;
 
 use super::components::AslodStats;
 use super::diagnostics;
-use super::geomorph::{RegionGeomorphs, write_group_records};
+use super::geomorph::{MorphTarget, RegionGeomorphs};
 use super::instance::MultiresInstance;
 use super::render::{UploadTarget, swap_indices};
 use super::tasks::par_chunks;
 use crate::bounds::Obb;
 use crate::mesh::IndexedMesh;
-use crate::regions::{Geomorphs, MorphGroup, MorphKind, RegionCaches, RegionMesh};
+use crate::regions::{Geomorphs, MorphKind, RegionCaches, RegionMesh};
 use crate::skin::{Influences, SkinRegionKind, blend, blend_with_tangents};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::system::NonSendMarker;
@@ -129,7 +129,7 @@ pub(crate) struct SkinState {
     first_frame: bool,
     /// Under geomorphs: the further attributes they interpolate (see
     /// `RegionSkin::morph_attributes`).
-    morph_groups: Vec<MorphGroup>,
+    morph_targets: Vec<MorphTarget>,
 }
 
 impl SkinState {
@@ -163,7 +163,7 @@ impl SkinState {
             root_global: Affine3A::IDENTITY,
             regions: region_state,
             first_frame: true,
-            morph_groups: Vec::new(),
+            morph_targets: Vec::new(),
         }
     }
 
@@ -482,9 +482,9 @@ fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
         let skin = &mut **skin;
         let morph = *morph;
         if let Some((morphs, _)) = morph
-            && skin.morph_groups.len() != morphs.attribute_groups().len()
+            && skin.morph_targets.len() != morphs.attribute_groups().len()
         {
-            skin.morph_groups = morphs.attribute_groups().to_vec();
+            skin.morph_targets = MorphTarget::all(morphs.attribute_groups());
         }
         for (r, state) in skin.regions.iter_mut().enumerate() {
             let region = &regions.regions()[r];
@@ -609,7 +609,7 @@ impl SkinState {
                 swapped = state.indices_changed && swap_indices(mesh, &mut state.indices);
                 if !state.written.is_empty() {
                     state.swap_vertices(mesh);
-                    state.write_morph_attributes(mesh, &self.morph_groups);
+                    state.write_morph_attributes(mesh, &self.morph_targets);
                 }
             }
             if swapped {
@@ -629,14 +629,16 @@ impl SkinState {
 impl RegionSkin {
     /// Writes the further attributes of every vertex where the morphs show them (tangents
     /// went through the blend), when there are any this frame.
-    fn write_morph_attributes(&mut self, mesh: &mut Mesh, groups: &[MorphGroup]) {
-        let stride = groups.last().map_or(0, |g| g.offset + g.len);
+    fn write_morph_attributes(&mut self, mesh: &mut Mesh, targets: &[MorphTarget]) {
+        let stride = MorphTarget::stride(targets);
         if !std::mem::take(&mut self.attributes_written) || stride == 0 {
             return;
         }
-        for group in groups.iter().filter(|g| g.kind != MorphKind::Tangent) {
-            let records = self.morph_attributes.chunks_exact(stride).enumerate();
-            write_group_records(mesh, group, records);
+        for target in targets
+            .iter()
+            .filter(|t| t.group.kind != MorphKind::Tangent)
+        {
+            target.write(mesh, self.morph_attributes.chunks_exact(stride).enumerate());
         }
     }
 
