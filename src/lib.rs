@@ -49,6 +49,6 @@ pub mod prelude {
         FullDetail, Geomorph, GeomorphMaterial, GpuGeomorph, LodPriority, LodRegion, MultiresError,
         MultiresInstance, MultiresMaterialPlugin, MultiresMesh, MultiresModel, MultiresScene,
         MultiresSceneModels, MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera,
-        RegionUpload, ViewDependent,
+        RegionUpload, SharedLevels, ViewDependent,
     };
 }

@@ -181,6 +181,9 @@ pub struct AslodStats {
     pub regions_changed: usize,
     /// Bytes of region mesh data handed to the renderer in `Upload`: the new index buffers
     /// and blended vertex runs ([`RegionUpload::IndicesOnly`](super::RegionUpload::IndicesOnly), `0` without a render sub-app),
-    /// or every changed mesh's whole vertex and index data ([`RegionUpload::WholeMesh`](super::RegionUpload::WholeMesh)).
+    /// or every changed mesh's whole vertex and index data ([`RegionUpload::WholeMesh`](super::RegionUpload::WholeMesh)),
+    /// and the level meshes [`SharedLevels`](super::SharedLevels) models made.
     pub upload_bytes: u64,
+    /// Level meshes alive that [`SharedLevels`](super::SharedLevels) models share.
+    pub shared_meshes: usize,
 }

@@ -68,6 +68,7 @@ mod render;
 mod scene;
 mod select;
 mod sets;
+mod shared;
 mod skin;
 mod spawn;
 mod tasks;
@@ -95,6 +96,7 @@ pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
 pub use render::{RegionUpload, RegionUploadStats};
 pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
 pub use sets::AslodSystems;
+pub use shared::SharedLevels;
 pub use skin::MultiresSkin;
 pub use skin::binding::SkinBinding;
 pub use view_dependent::ViewDependent;
@@ -169,6 +171,7 @@ impl Plugin for AslodPlugin {
             .register_type::<PolygonBudget>()
             .register_type::<FullDetail>()
             .register_type::<Geomorph>()
+            .register_type::<SharedLevels>()
             .register_type::<RegionUpload>()
             .init_resource::<RegionUpload>()
             .init_resource::<render::RenderWrites>()
@@ -182,6 +185,7 @@ impl Plugin for AslodPlugin {
             .init_resource::<select::SyncTime>()
             .init_resource::<scene::SceneAssetCache>()
             .init_resource::<materials::MaterialsGiven>()
+            .init_resource::<shared::SharedMeshes>()
             .add_observer(spawn::remove_region_meshes);
         diagnostics::register(app);
         app.configure_sets(
@@ -198,7 +202,9 @@ impl Plugin for AslodPlugin {
             )
                 .chain()
                 .after(TransformSystems::Propagate)
-                .after(bevy::camera::CameraUpdateSystems),
+                .after(bevy::camera::CameraUpdateSystems)
+                // Level meshes `Upload` makes are extracted in the frame that asked for them.
+                .before(bevy::asset::AssetEventSystems),
         )
         .configure_sets(
             PostUpdate,
@@ -211,7 +217,9 @@ impl Plugin for AslodPlugin {
             (
                 (
                     scene::convert_scenes,
+                    shared::forget_dropped,
                     spawn::mark_modified,
+                    spawn::mark_shared_changed,
                     spawn::spawn_regions,
                     spawn::sync_view_dependent,
                 )

@@ -17,6 +17,7 @@ use super::allocate::FrameAllocation;
 use super::components::{AslodStats, Geomorph};
 use super::geomorph::{Clock, GpuGeomorph, MorphChange, MorphOutput, RegionGeomorphs, RegionGrant};
 use super::instance::{AllocationSlot, MultiresInstance, RegionStaging, StagedIndices};
+use super::shared::SharedState;
 use super::skin::SkinState;
 use super::tasks::par_chunks;
 use super::view_dependent::ViewDependentState;
@@ -48,10 +49,11 @@ pub(crate) fn sync_geomorphs(
         Option<&mut RegionGeomorphs>,
         Option<&mut RegionStaging>,
         Option<&mut ViewDependentState>,
+        Has<SharedState>,
     )>,
 ) {
     let start = Instant::now();
-    for (entity, instance, geomorph, gpu, skinned, morphs, staging, view) in &mut models {
+    for (entity, instance, geomorph, gpu, skinned, morphs, staging, view, shared) in &mut models {
         // Ended geomorphs that `Upload` wrote back at rest go.
         let morphs = match morphs {
             Some(m) if m.is_done() => {
@@ -61,7 +63,12 @@ pub(crate) fn sync_geomorphs(
             other => other,
         };
         let seconds = geomorph.map_or(0.0, |m| m.0);
-        let region_seconds = if view.is_some() { 0.0 } else { seconds };
+        // Shared level meshes are drawn by many instances: their regions do not morph.
+        let region_seconds = if view.is_some() || shared {
+            0.0
+        } else {
+            seconds
+        };
         let region_gpu = gpu && !skinned;
         let current = morphs.as_ref().map(|m| m.current());
         let change = MorphChange::of(current, region_seconds, region_gpu);
@@ -116,6 +123,7 @@ type ModelQuery = (
     Option<&'static mut RegionStaging>,
     Option<&'static mut RegionGeomorphs>,
     Option<&'static mut ViewDependentState>,
+    Option<&'static SharedState>,
 );
 
 /// One model in `SelectLod`.
@@ -179,7 +187,7 @@ pub(crate) fn select_lod(
 /// part), its caches moved to them; under geomorphs, its coarsenings started and its
 /// refinements waiting.
 fn take_allocation(model: &mut ModelItem, allocation: &FrameAllocation, clock: Clock) -> Sums {
-    let (instance, slot, staging, morphs, view) = model;
+    let (instance, slot, staging, morphs, view, shared) = model;
     if let Some(view) = view {
         let this_frame = allocation.includes(slot);
         let count = allocation.counts.get(slot.first).copied();
@@ -224,16 +232,27 @@ fn take_allocation(model: &mut ModelItem, allocation: &FrameAllocation, clock: C
     }
     let mut shown = 0;
     for (r, &target) in instance.targets.iter().enumerate() {
+        let target = match shared {
+            Some(shared) => shared.step(&instance.regions, r, target as usize),
+            None => target as usize,
+        };
         shown += instance
             .caches
-            .set_triangle_count(&instance.regions, r, target as usize) as u64;
+            .set_triangle_count(&instance.regions, r, target) as u64;
     }
     // A new model's caches start at full detail: its first allocation is taken at once,
     // under geomorphs too (it would count full detail for the morph time).
     if let Some(morphs) = morphs {
         morphs.finish(&instance.regions, &mut instance.caches, allocated, clock);
     }
-    finish_select(instance, staging.as_deref_mut(), morphs.as_deref(), shown);
+    let shared = shared.is_some();
+    finish_select(
+        instance,
+        staging.as_deref_mut(),
+        morphs.as_deref(),
+        shared,
+        shown,
+    );
     Sums {
         shown,
         target,
@@ -244,7 +263,7 @@ fn take_allocation(model: &mut ModelItem, allocation: &FrameAllocation, clock: C
 /// The grant: the waiting refinements of every model take what is `free`, largest first.
 fn grant_refinements(items: &mut [ModelItem], mut free: u64) {
     let mut requests = Vec::new();
-    for (i, (_, _, _, morphs, view)) in items.iter().enumerate() {
+    for (i, (_, _, _, morphs, view, _)) in items.iter().enumerate() {
         let model = i as u32;
         if let Some(morphs) = morphs {
             let wanted = morphs.wanted().iter();
@@ -268,7 +287,7 @@ fn grant_refinements(items: &mut [ModelItem], mut free: u64) {
     for request in requests {
         let granted = u64::from(request.triangles).min(free);
         free -= granted;
-        let (_, _, _, morphs, view) = &mut items[request.model as usize];
+        let (_, _, _, morphs, view, _) = &mut items[request.model as usize];
         match (request.what, morphs, view) {
             (Refines::Level, _, Some(view)) => view.set_granted(granted as u32),
             (Refines::Region(region), Some(morphs), _) => morphs.push_grant(RegionGrant {
@@ -284,7 +303,7 @@ fn grant_refinements(items: &mut [ModelItem], mut free: u64) {
 /// view-dependent model's level goes to its instance. Returns the triangles it shows, when
 /// it waited for this pass (else `0`: the first pass counted them).
 fn apply_grants(model: &mut ModelItem, clock: Clock) -> u64 {
-    let (instance, _, staging, morphs, view) = model;
+    let (instance, _, staging, morphs, view, _) = model;
     if let Some(view) = view {
         let shown = view.finish_morph(clock);
         if let (Some(shown), Some(staging)) = (shown, staging.as_mut()) {
@@ -303,16 +322,24 @@ fn apply_grants(model: &mut ModelItem, clock: Clock) -> u64 {
     }
     morphs.finish(regions, caches, false, clock);
     let shown = caches.total_triangles() as u64;
-    finish_select(instance, staging.as_deref_mut(), Some(&**morphs), shown);
+    finish_select(
+        instance,
+        staging.as_deref_mut(),
+        Some(&**morphs),
+        false,
+        shown,
+    );
     shown
 }
 
 /// After a model's caches took this frame's levels (`shown` triangles): whether it is
-/// settled, and (unskinned) the index buffers of its dirty regions for `Upload`.
+/// settled, and (unskinned) the index buffers of its dirty regions for `Upload`; a `shared`
+/// model's dirty regions are only marked, for `Upload` to find their level meshes.
 fn finish_select(
     instance: &mut MultiresInstance,
     staging: Option<&mut RegionStaging>,
     morphs: Option<&RegionGeomorphs>,
+    shared: bool,
     shown: u64,
 ) {
     // Skinned models write their buffers in `Deform` (and are never skipped), and morphing
@@ -329,10 +356,14 @@ fn finish_select(
             continue;
         }
         let StagedIndices { ready, indices } = &mut staging.staged[r];
-        match indices {
-            Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
-            Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
-        };
+        if shared {
+            caches.mark_written(r);
+        } else {
+            match indices {
+                Indices::U16(buffer) => caches.write_indices_u16(regions, r, buffer),
+                Indices::U32(buffer) => caches.write_indices(regions, r, buffer),
+            };
+        }
         if !std::mem::replace(ready, true) {
             staging.ready.push(r as u32);
         }

@@ -9,6 +9,7 @@ use super::asset::MultiresMesh;
 use super::components::{LodRegion, MultiresModel, ViewDependentLevel};
 use super::geomorph::RegionGeomorphs;
 use super::instance::{AllocationSlot, MultiresInstance, Rebuild, RegionStaging};
+use super::shared::{SharedLevels, SharedMeshes, SharedState};
 use super::skin::binding::SkinBinding;
 use super::skin::{MultiresSkin, SkinState, initial_region_mesh};
 use super::view_dependent::{ViewDependent, ViewDependentState};
@@ -31,6 +32,7 @@ type ModelState = (
     SkinState,
     RegionGeomorphs,
     ViewDependentState,
+    SharedState,
     Rebuild,
 );
 
@@ -43,13 +45,20 @@ type ModelState = (
 pub(super) fn spawn_regions(
     mut commands: Commands,
     models: Query<
-        (Entity, &MultiresModel, Option<&MultiresSkin>, Has<Rebuild>),
+        (
+            Entity,
+            &MultiresModel,
+            Option<&MultiresSkin>,
+            Option<&SharedLevels>,
+            Has<Rebuild>,
+        ),
         Or<(Without<MultiresInstance>, With<Rebuild>)>,
     >,
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
+    mut shared_meshes: ResMut<SharedMeshes>,
 ) {
-    for (entity, model, joints, rebuild) in &models {
+    for (entity, model, joints, shared, rebuild) in &models {
         let asset = assets.get(&model.0);
         if rebuild || asset.is_some() {
             commands.entity(entity).remove::<ModelState>();
@@ -84,8 +93,33 @@ pub(super) fn spawn_regions(
             binding: binding.as_deref(),
             joints,
         };
-        let (handles, region_entities) =
-            spawn_region_entities(&mut commands, &mut meshes, &regions, &place, initial);
+        let shared = match (shared, asset.skin()) {
+            (Some(_), Some(_)) => {
+                warn!(
+                    "MultiresModel {entity} has SharedLevels but is skinned: its regions keep their own meshes"
+                );
+                None
+            }
+            (Some(&ladder), None) => {
+                if ladder.effective_ratio() != ladder.ratio {
+                    warn!(
+                        "MultiresModel {entity}: SharedLevels ratio {} is not above {}; {} is used",
+                        ladder.ratio,
+                        SharedLevels::MIN_RATIO,
+                        SharedLevels::MIN_RATIO
+                    );
+                }
+                Some(SharedState {
+                    asset: shared_meshes.asset(model.0.id(), &regions),
+                    ladder,
+                })
+            }
+            _ => None,
+        };
+        let (handles, region_entities) = match &shared {
+            Some(state) => spawn_shared_region_entities(&mut commands, entity, &state.asset.boxes),
+            None => spawn_region_entities(&mut commands, &mut meshes, &regions, &place, initial),
+        };
         let targets = regions
             .regions()
             .iter()
@@ -111,6 +145,9 @@ pub(super) fn spawn_regions(
             Some(skin) => model.insert(skin),
             None => model.insert(staging),
         };
+        if let Some(shared) = shared {
+            model.insert(shared);
+        }
     }
 }
 
@@ -178,6 +215,31 @@ fn spawn_region_entities(
     (handles, entities)
 }
 
+/// Spawns one child per region of a shared model, each with the box of all its vertices and
+/// no mesh yet: its first `Upload` puts it on the level mesh of its levels.
+fn spawn_shared_region_entities(
+    commands: &mut Commands,
+    model: Entity,
+    boxes: &[Aabb],
+) -> (Vec<Handle<Mesh>>, Vec<Entity>) {
+    let entities = boxes
+        .iter()
+        .enumerate()
+        .map(|(r, &aabb)| {
+            let child = (
+                Mesh3d::default(),
+                LodRegion { region: r },
+                Transform::default(),
+                ChildOf(model),
+                aabb,
+                NoAutoAabb,
+            );
+            commands.spawn(child).id()
+        })
+        .collect();
+    (vec![Handle::default(); boxes.len()], entities)
+}
+
 /// The Bevy mesh of a region or a variable-resolution level before its first level: the
 /// vertex table (joints and weights left out: the plugin skins on the CPU) and one degenerate
 /// triangle in the index width the levels use, so the renderer gives the mesh its index
@@ -220,6 +282,30 @@ pub(super) fn mark_modified(
     for (model, handle) in &models {
         if modified.contains(&handle.0.id()) {
             commands.entity(model).insert(Rebuild);
+        }
+    }
+}
+
+/// Every model whose [`SharedLevels`] came, changed or went is marked [`Rebuild`]: its
+/// regions move between their own meshes and the shared ones.
+#[allow(clippy::type_complexity)]
+pub(super) fn mark_shared_changed(
+    mut commands: Commands,
+    changed: Query<
+        (Entity, &SharedLevels, Option<&SharedState>),
+        (With<MultiresInstance>, Changed<SharedLevels>),
+    >,
+    mut removed: RemovedComponents<SharedLevels>,
+    shared: Query<(), With<SharedState>>,
+) {
+    for (model, levels, state) in &changed {
+        if state.map(|s| s.ladder) != Some(*levels) {
+            commands.entity(model).insert(Rebuild);
+        }
+    }
+    for model in removed.read() {
+        if shared.contains(model) {
+            commands.entity(model).try_insert(Rebuild);
         }
     }
 }
@@ -314,10 +400,14 @@ pub(super) fn sync_view_dependent(
 pub(super) fn remove_region_meshes(
     remove: On<Remove, MultiresInstance>,
     mut commands: Commands,
-    instances: Query<(&MultiresInstance, Option<&ViewDependentState>)>,
+    instances: Query<(
+        &MultiresInstance,
+        Option<&ViewDependentState>,
+        Has<SharedState>,
+    )>,
     meshes: Option<ResMut<Assets<Mesh>>>,
 ) {
-    let Ok((instance, view_dependent)) = instances.get(remove.entity) else {
+    let Ok((instance, view_dependent, shared)) = instances.get(remove.entity) else {
         return;
     };
     for entity in instance.drawn_entities() {
@@ -326,11 +416,13 @@ pub(super) fn remove_region_meshes(
     let Some(mut meshes) = meshes else {
         return;
     };
-    for handle in instance
-        .meshes
-        .iter()
-        .chain(view_dependent.map(|v| &v.handle))
-    {
+    // Level meshes other instances may show go when Bevy drops their last handle.
+    let own = if shared {
+        &[][..]
+    } else {
+        &instance.meshes[..]
+    };
+    for handle in own.iter().chain(view_dependent.map(|v| &v.handle)) {
         meshes.remove(handle);
     }
 }

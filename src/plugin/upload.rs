@@ -2,11 +2,12 @@
 //! bytes to the renderer ([`render`](super::render)): swapped-in index buffers, blended
 //! vertices of skinned regions, and the vertices geomorphs move.
 
-use super::components::AslodStats;
+use super::components::{AslodStats, LodRegion};
 use super::diagnostics;
 use super::geomorph::RegionGeomorphs;
 use super::instance::{MultiresInstance, RegionStaging, StagedIndices};
 use super::render::{RegionLike, RegionUpload, RenderWrites, UploadTarget, swap_staged};
+use super::shared::{SharedMeshes, SharedState, SharedUpload};
 use super::skin::SkinState;
 use super::view_dependent::ViewDependentState;
 use bevy::camera::primitives::Aabb;
@@ -21,6 +22,7 @@ type ModelQuery = (
     Option<&'static mut SkinState>,
     Option<&'static mut RegionGeomorphs>,
     Option<&'static mut ViewDependentState>,
+    Option<&'static SharedState>,
 );
 
 /// `Upload`: swap in the index buffers `SelectLod` wrote for dirty regions, write what
@@ -34,6 +36,8 @@ pub(crate) fn upload(
     mode: Res<RegionUpload>,
     mut writes: ResMut<RenderWrites>,
     mut aabbs: Query<&'static mut Aabb, RegionLike>,
+    mut drawn: Query<&'static mut Mesh3d, With<LodRegion>>,
+    mut shared_meshes: ResMut<SharedMeshes>,
     mut stats: ResMut<AslodStats>,
     mut diag: Diagnostics,
 ) {
@@ -48,7 +52,13 @@ pub(crate) fn upload(
         aabbs: &mut aabbs,
         bytes: 0,
     };
-    for (mut instance, staging, skin, morphs, view) in &mut models {
+    let mut shared_upload = SharedUpload {
+        table: &mut shared_meshes,
+        drawn: &mut drawn,
+        bytes: 0,
+        scratch: Vec::new(),
+    };
+    for (mut instance, staging, skin, morphs, view, shared) in &mut models {
         if let Some(mut view) = view {
             changed += usize::from(view.upload(&mut target));
             // (Its geomorphs may have gone: it shows the refined level now.)
@@ -58,8 +68,19 @@ pub(crate) fn upload(
             changed += skin.upload(&instance, &mut target);
         }
         swapped.clear();
-        if let Some(mut staging) = staging {
-            changed += upload_staged(&instance, &mut staging, &mut target, &mut swapped);
+        match (staging, shared) {
+            (Some(mut staging), Some(shared)) => {
+                let staging = &mut *staging;
+                for &r in &staging.ready {
+                    staging.staged[r as usize].ready = false;
+                }
+                let ready = staging.ready.drain(..);
+                changed += shared_upload.apply(shared, &mut instance, target.meshes, ready);
+            }
+            (Some(mut staging), None) => {
+                changed += upload_staged(&instance, &mut staging, &mut target, &mut swapped);
+            }
+            _ => {}
         }
         if let Some(output) = morphs.and_then(|m| m.into_inner().output.as_mut()) {
             output.upload(&instance.mesh_ids, &mut target, |r| {
@@ -67,7 +88,8 @@ pub(crate) fn upload(
             });
         }
     }
-    stats.upload_bytes = target.bytes;
+    stats.upload_bytes = target.bytes + shared_upload.bytes as u64;
+    stats.shared_meshes = shared_upload.table.level_count();
     stats.regions_changed = changed;
     stats.upload_ms = start.elapsed().as_secs_f64() * 1e3;
     stats.update_ms += stats.upload_ms;

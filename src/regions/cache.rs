@@ -337,6 +337,16 @@ impl RegionCaches {
         self.dirty[region]
     }
 
+    /// Clears a region's dirty flag without writing it: for a caller that keys the region's
+    /// buffer by its levels and wrote that buffer before.
+    ///
+    /// # Panics
+    /// Panics when `region` is out of range.
+    #[inline]
+    pub(crate) fn mark_written(&mut self, region: usize) {
+        self.dirty[region] = false;
+    }
+
     /// Moves a region to the finest level with at most `triangles` triangles (never below
     /// its base) and returns the count reached. A change marks the region dirty, and the
     /// regions whose border corners it moves to other representatives: their corners are

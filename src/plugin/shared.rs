@@ -1,0 +1,443 @@
+//! Shared levels: the instances of one asset that show a region at the same levels draw one
+//! Bevy mesh, made once and dropped when no instance shows it ([`SharedLevels`]).
+//!
+//! A region's index buffer is a function of its own level and of the levels of the regions
+//! whose steps move its border corners (its *dependencies*), whatever path the caches took
+//! there (`tests/regions.rs` holds this). So a level mesh is keyed by the asset, the region
+//! and those levels, and `Upload` finds it without writing the instance's indices. The key
+//! maps to a weak id: the instances' `Mesh3d`s hold the only strong handles, so Bevy drops a
+//! level mesh once the last instance showing it moves on, and the key is forgotten when its
+//! `AssetEvent::Removed` comes ([`forget_dropped`]).
+//!
+//! A level mesh holds only the vertices its triangles use, so a ladder of levels costs about
+//! what a chain of discrete levels does.
+
+use super::asset::MultiresMesh;
+use super::components::LodRegion;
+use super::instance::MultiresInstance;
+use crate::bevy_mesh::to_bevy_mesh;
+use crate::mesh::IndexedMesh;
+use crate::regions::{RegionCaches, RegionMesh};
+use bevy::asset::AssetId;
+use bevy::camera::primitives::Aabb;
+use bevy::mesh::Indices;
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use std::sync::Arc;
+
+/// Makes a [`MultiresModel`](super::MultiresModel) share its region meshes with every other
+/// instance of its asset: each region shows a level from a ladder whose steps are `ratio`
+/// apart in triangles (the step at or below its allocation), and the instances showing a
+/// region at the same levels draw the same Bevy mesh. Mesh memory is then bounded by the
+/// asset and its ladder, not by the number of instances: about `1 / (1 - 1/ratio)` times the
+/// asset while every step is in use (3× at the default 1.5, as a chain of discrete levels
+/// each half the one before costs 2×).
+///
+/// A shared model draws up to `1 - 1/ratio` fewer triangles than it was allocated (the
+/// budget still holds). Skinned models move their own vertices and ignore it (with a
+/// warning); so do region geomorphs, which move vertices per instance: a shared model with a
+/// [`Geomorph`](super::Geomorph) changes its regions' levels at once (view-dependent levels
+/// still morph). Adding, changing or removing the component rebuilds the model.
+///
+/// ```
+/// use bevy::prelude::*;
+/// use bevy_aslod::prelude::*;
+///
+/// fn place_rocks(mut commands: Commands, rock: Handle<MultiresMesh>) {
+///     for i in 0..1000 {
+///         let at = Vec3::new((i % 40) as f32 * 4.0, 0.0, (i / 40) as f32 * 4.0);
+///         commands.spawn((
+///             MultiresModel(rock.clone()),
+///             SharedLevels::default(),
+///             Transform::from_translation(at),
+///         ));
+///     }
+/// }
+/// # let _ = place_rocks;
+/// ```
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Default)]
+pub struct SharedLevels {
+    /// The ratio of triangles between a ladder step and the next coarser one. Must be above
+    /// `1`: smaller values (and NaN) are raised to [`MIN_RATIO`](Self::MIN_RATIO), with a
+    /// warning when the model is built.
+    ///
+    /// Default: [`DEFAULT_RATIO`](Self::DEFAULT_RATIO).
+    pub ratio: f32,
+}
+
+impl SharedLevels {
+    /// The default ladder ratio, `1.5`.
+    pub const DEFAULT_RATIO: f32 = 1.5;
+    /// The smallest ratio used, `1.05` (finer ladders share less and hold more meshes).
+    pub const MIN_RATIO: f32 = 1.05;
+
+    /// The ratio the ladder uses: [`ratio`](Self::ratio), or [`MIN_RATIO`](Self::MIN_RATIO)
+    /// when that is below it or NaN.
+    #[must_use]
+    pub fn effective_ratio(self) -> f32 {
+        if self.ratio >= Self::MIN_RATIO {
+            self.ratio
+        } else {
+            Self::MIN_RATIO
+        }
+    }
+
+    /// The ladder step at or below `target` for a region of `full` triangles whose coarsest
+    /// level has `min`: `full`, `full / ratio`, `full / ratio²`, … rounded down, and never
+    /// below `min`.
+    ///
+    /// ```
+    /// use bevy_aslod::prelude::SharedLevels;
+    ///
+    /// let ladder = SharedLevels { ratio: 2.0 };
+    /// assert_eq!(ladder.step_at_or_below(1000, 10, 1000), 1000);
+    /// assert_eq!(ladder.step_at_or_below(1000, 10, 999), 500);
+    /// assert_eq!(ladder.step_at_or_below(1000, 10, 300), 250);
+    /// assert_eq!(ladder.step_at_or_below(1000, 10, 12), 10);
+    /// ```
+    #[must_use]
+    pub fn step_at_or_below(self, full: usize, min: usize, target: usize) -> usize {
+        if target >= full {
+            return full;
+        }
+        if target <= min {
+            return min.min(full);
+        }
+        let ratio = f64::from(self.effective_ratio());
+        let mut k = ((full as f64 / target as f64).ln() / ratio.ln())
+            .ceil()
+            .max(0.0);
+        let mut step = (full as f64 * ratio.powf(-k)).floor() as usize;
+        // Rounding may land a step above the target: the next one is below it.
+        while step > target {
+            k += 1.0;
+            step = (full as f64 * ratio.powf(-k)).floor() as usize;
+        }
+        step.max(min)
+    }
+}
+
+impl Default for SharedLevels {
+    fn default() -> Self {
+        Self {
+            ratio: Self::DEFAULT_RATIO,
+        }
+    }
+}
+
+/// What a shared model keeps: its asset's shared data and its ladder.
+#[derive(Component, Debug)]
+pub(super) struct SharedState {
+    pub(super) asset: Arc<SharedAsset>,
+    pub(super) ladder: SharedLevels,
+}
+
+impl SharedState {
+    /// The triangles region `r` of `regions` shows for an allocation of `target`: its ladder
+    /// step.
+    pub(super) fn step(&self, regions: &RegionMesh, r: usize, target: usize) -> usize {
+        let region = &regions.regions()[r];
+        self.ladder
+            .step_at_or_below(region.max_triangles(), region.min_triangles(), target)
+    }
+}
+
+/// What every shared instance of one asset has in common.
+#[derive(Debug)]
+pub(super) struct SharedAsset {
+    /// Tells this asset's keys from those of an asset built before a hot reload.
+    serial: u64,
+    /// Per region, the regions whose levels its index buffer depends on: itself first, then
+    /// those whose steps move its corners, ascending.
+    dependencies: Vec<Box<[u32]>>,
+    /// Per region, the box of all its vertices (any level's triangles lie inside).
+    pub(super) boxes: Vec<Aabb>,
+}
+
+/// A level mesh's key: the asset, the region, and the levels of the region's dependencies.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+struct LevelKey {
+    asset: u64,
+    region: u32,
+    levels: Box<[u32]>,
+}
+
+/// The level meshes of every shared asset.
+#[derive(Resource, Debug, Default)]
+pub(super) struct SharedMeshes {
+    assets: HashMap<AssetId<MultiresMesh>, Arc<SharedAsset>>,
+    levels: HashMap<LevelKey, AssetId<Mesh>>,
+    /// Every level mesh made, with its key, to forget it once Bevy drops it.
+    made: HashMap<AssetId<Mesh>, LevelKey>,
+    next_serial: u64,
+}
+
+impl SharedMeshes {
+    /// The shared data of asset `id` (made on first use).
+    pub(super) fn asset(
+        &mut self,
+        id: AssetId<MultiresMesh>,
+        regions: &RegionMesh,
+    ) -> Arc<SharedAsset> {
+        if let Some(asset) = self.assets.get(&id) {
+            return asset.clone();
+        }
+        let asset = Arc::new(SharedAsset {
+            serial: self.next_serial,
+            dependencies: dependencies(regions),
+            boxes: regions
+                .regions()
+                .iter()
+                .map(|r| {
+                    let positions = &r.progressive_mesh().vertices().positions;
+                    Aabb::enclosing(positions.iter().copied()).unwrap_or_default()
+                })
+                .collect(),
+        });
+        self.next_serial += 1;
+        self.assets.insert(id, asset.clone());
+        asset
+    }
+
+    /// Level meshes alive now (for tests and statistics).
+    pub(super) fn level_count(&self) -> usize {
+        self.levels.len()
+    }
+}
+
+/// Per region, itself and the regions whose front events rewrite its corners.
+fn dependencies(regions: &RegionMesh) -> Vec<Box<[u32]>> {
+    let n = regions.regions().len();
+    let mut deps: Vec<Vec<u32>> = (0..n as u32).map(|r| vec![r]).collect();
+    for (q, region) in regions.regions().iter().enumerate() {
+        for event in &region.front_events {
+            let list = &mut deps[event.region as usize];
+            if !list.contains(&(q as u32)) {
+                list.push(q as u32);
+            }
+        }
+    }
+    deps.into_iter()
+        .map(|mut list| {
+            list[1..].sort_unstable();
+            list.into_boxed_slice()
+        })
+        .collect()
+}
+
+/// What `Upload` needs to put a shared model's regions on their level meshes.
+pub(super) struct SharedUpload<'a, 'w, 's> {
+    pub(super) table: &'a mut SharedMeshes,
+    pub(super) drawn: &'a mut Query<'w, 's, &'static mut Mesh3d, With<LodRegion>>,
+    /// Bytes of the level meshes made this frame.
+    pub(super) bytes: usize,
+    /// Reused for the indices of a level mesh being made.
+    pub(super) scratch: Vec<u32>,
+}
+
+impl SharedUpload<'_, '_, '_> {
+    /// Puts each region of `regions` on the mesh of its current levels, making those that
+    /// no instance shows yet. Returns how many regions changed mesh.
+    pub(super) fn apply(
+        &mut self,
+        state: &SharedState,
+        instance: &mut MultiresInstance,
+        meshes: &mut Assets<Mesh>,
+        regions: impl Iterator<Item = u32>,
+    ) -> usize {
+        let mut changed = 0;
+        for r in regions {
+            let r = r as usize;
+            let key = LevelKey {
+                asset: state.asset.serial,
+                region: r as u32,
+                levels: state.asset.dependencies[r]
+                    .iter()
+                    .map(|&q| instance.caches.level(q as usize) as u32)
+                    .collect(),
+            };
+            let found = self
+                .table
+                .levels
+                .get(&key)
+                .and_then(|&id| meshes.get_strong_handle(id));
+            let handle = match found {
+                Some(handle) => handle,
+                None => {
+                    let mesh = level_mesh(
+                        &instance.regions,
+                        &mut instance.caches,
+                        r,
+                        &mut self.scratch,
+                    );
+                    self.bytes += mesh_bytes(&mesh);
+                    let handle = meshes.add(mesh);
+                    self.table.levels.insert(key.clone(), handle.id());
+                    self.table.made.insert(handle.id(), key);
+                    handle
+                }
+            };
+            if instance.mesh_ids[r] == handle.id() {
+                continue;
+            }
+            if let Ok(mut drawn) = self.drawn.get_mut(instance.region_entities[r]) {
+                drawn.0 = handle.clone();
+            }
+            instance.mesh_ids[r] = handle.id();
+            instance.meshes[r] = handle;
+            changed += 1;
+        }
+        changed
+    }
+}
+
+/// The Bevy mesh of region `r` at the caches' current levels: only the vertices its
+/// triangles use (in their order in the region's vertex table), 16-bit indices where they
+/// fit.
+fn level_mesh(
+    regions: &RegionMesh,
+    caches: &mut RegionCaches,
+    r: usize,
+    indices: &mut Vec<u32>,
+) -> Mesh {
+    caches.write_indices(regions, r, indices);
+    let table = regions.regions()[r].progressive_mesh().vertices();
+    let mut remap = vec![u32::MAX; table.vertex_count()];
+    for &i in indices.iter() {
+        remap[i as usize] = 0;
+    }
+    let mut used = Vec::new();
+    for (v, slot) in remap.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = used.len() as u32;
+            used.push(v as u32);
+        }
+    }
+    for i in indices.iter_mut() {
+        *i = remap[*i as usize];
+    }
+    let vertices = IndexedMesh {
+        joints: None,
+        weights: None,
+        ..table.subset(&used)
+    };
+    let mut mesh = to_bevy_mesh(&vertices, &[]);
+    mesh.insert_indices(if used.len() <= usize::from(u16::MAX) {
+        Indices::U16(indices.iter().map(|&i| i as u16).collect())
+    } else {
+        Indices::U32(indices.clone())
+    });
+    mesh
+}
+
+/// A mesh's vertex and index bytes, as the renderer holds them.
+fn mesh_bytes(mesh: &Mesh) -> usize {
+    let vertices = mesh.count_vertices() * mesh.get_vertex_size() as usize;
+    let indices = match mesh.indices() {
+        Some(Indices::U16(i)) => i.len() * 2,
+        Some(Indices::U32(i)) => i.len() * 4,
+        None => 0,
+    };
+    vertices + indices
+}
+
+/// Forgets the level meshes Bevy dropped (no instance showed them any more) and the shared
+/// data of assets that changed or went (their instances are rebuilt, and make new level
+/// meshes).
+pub(super) fn forget_dropped(
+    mut table: ResMut<SharedMeshes>,
+    mut meshes: MessageReader<AssetEvent<Mesh>>,
+    mut assets: MessageReader<AssetEvent<MultiresMesh>>,
+) {
+    for event in meshes.read() {
+        if let AssetEvent::Removed { id } = event
+            && let Some(key) = table.made.remove(id)
+            && table.levels.get(&key) == Some(id)
+        {
+            table.levels.remove(&key);
+        }
+    }
+    for event in assets.read() {
+        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
+            table.assets.remove(id);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::test_grid;
+    use crate::multires::BuildOptions;
+    use crate::regions::{GridPlane, Partition};
+
+    /// A bumpy 17×17-vertex grid cut into 3×3 regions.
+    fn regions() -> RegionMesh {
+        let mesh = test_grid(17, |x, z| ((x * 7 + z * 13) % 5) as f32 * 0.1);
+        let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
+        RegionMesh::build(&mesh, &partition, &BuildOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn ladder_steps_are_below_the_target_and_ratio_apart() {
+        let ladder = SharedLevels::default();
+        let mut steps = std::collections::BTreeSet::new();
+        for target in 0..=5000 {
+            let step = ladder.step_at_or_below(5000, 40, target);
+            assert!(step <= target.max(40), "{step} above {target}");
+            assert!(step >= 40);
+            steps.insert(step);
+        }
+        // 5000 / 1.5^k down to 40: 12 steps above the minimum, and the minimum.
+        assert_eq!(steps.len(), 13, "{steps:?}");
+        let nan = SharedLevels { ratio: f32::NAN };
+        assert_eq!(nan.effective_ratio(), SharedLevels::MIN_RATIO);
+        assert!(nan.step_at_or_below(100, 1, 50) <= 50);
+    }
+
+    #[test]
+    fn a_level_mesh_depends_only_on_its_dependencies_levels() {
+        let regions = regions();
+        let deps = dependencies(&regions);
+        for (r, list) in deps.iter().enumerate() {
+            assert_eq!(list[0], r as u32);
+        }
+        assert!(
+            deps.iter().any(|d| d.len() > 1),
+            "the regions share borders"
+        );
+        // Two walks that end at the same levels write the same level meshes.
+        let mut a = RegionCaches::new(&regions);
+        let mut b = RegionCaches::new(&regions);
+        let counts: Vec<usize> = regions
+            .regions()
+            .iter()
+            .map(|r| r.max_triangles() / 3)
+            .collect();
+        for (r, &c) in counts.iter().enumerate() {
+            a.set_triangle_count(&regions, r, c);
+        }
+        for (r, &c) in counts.iter().enumerate().rev() {
+            b.set_triangle_count(&regions, r, c / 2);
+            b.set_triangle_count(&regions, r, c);
+        }
+        for r in 0..counts.len() {
+            let (mut x, mut y) = (Vec::new(), Vec::new());
+            let mx = level_mesh(&regions, &mut a, r, &mut x);
+            let my = level_mesh(&regions, &mut b, r, &mut y);
+            assert_eq!(x, y);
+            assert_eq!(mesh_bytes(&mx), mesh_bytes(&my));
+            // Only the vertices the level uses.
+            let table = regions.regions()[r]
+                .progressive_mesh()
+                .vertices()
+                .vertex_count();
+            assert!(mx.count_vertices() < table);
+            assert_eq!(
+                x.iter().max().map(|&m| m as usize + 1),
+                Some(mx.count_vertices())
+            );
+        }
+    }
+}
