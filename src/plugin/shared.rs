@@ -200,9 +200,12 @@ impl SharedMeshes {
         asset
     }
 
-    /// Level meshes alive now (for tests and statistics).
-    pub(super) fn level_count(&self) -> usize {
-        self.levels.len()
+    /// Level meshes alive in `meshes` (a dropped one is forgotten a frame or two later).
+    pub(super) fn level_count(&self, meshes: &Assets<Mesh>) -> usize {
+        self.levels
+            .values()
+            .filter(|&&id| meshes.contains(id))
+            .count()
     }
 }
 

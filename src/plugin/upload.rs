@@ -89,7 +89,7 @@ pub(crate) fn upload(
         }
     }
     stats.upload_bytes = target.bytes + shared_upload.bytes as u64;
-    stats.shared_meshes = shared_upload.table.level_count();
+    stats.shared_meshes = shared_upload.table.level_count(target.meshes);
     stats.regions_changed = changed;
     stats.upload_ms = start.elapsed().as_secs_f64() * 1e3;
     stats.update_ms += stats.upload_ms;

@@ -8,5 +8,6 @@ mod attributes;
 mod baked;
 mod geomorph;
 mod models;
+mod shared;
 mod skinned;
 mod view_dependent;

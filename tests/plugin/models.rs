@@ -13,7 +13,7 @@ use glam::Vec3;
 /// The benches' scene: its bumpy 16×16 patch is the terrain here.
 #[allow(dead_code)]
 #[path = "../../benches/common/scene.rs"]
-mod scene;
+pub(super) mod scene;
 
 use scene::patch as terrain;
 
