@@ -16,6 +16,10 @@
 //! models are replaced by plain meshes built fresh from the final levels and
 //! the two pairs of screenshots are compared. Writes the PNGs and `check.json` into DIR.
 //! `--cpu-building` turns Bevy's GPU mesh preprocessing off.
+//!
+//! `render_cost --check DIR --shared`: the same for 200 instances of one patch with
+//! `SharedLevels`, at every distance: their regions drawn from the shared level meshes
+//! against plain meshes built fresh at the same levels.
 
 #[path = "../benches/common/clip.rs"]
 mod clip;
@@ -48,11 +52,13 @@ use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::bevy_mesh::to_bevy_mesh;
+use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
-    MultiresScene, PartitionSpec, PolygonBudget, RegionUpload, RegionUploadStats,
+    MultiresScene, PartitionSpec, PolygonBudget, RegionUpload, RegionUploadStats, SharedLevels,
 };
-use bevy_aslod::regions::{GridPlane, Partition};
+use bevy_aslod::regions::{GridPlane, Partition, RegionCaches};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -77,11 +83,15 @@ struct Args {
     /// With `--check`: WebGL 2 limits, so Bevy builds the draws on the CPU.
     #[arg(long, requires = "check")]
     cpu_building: bool,
+    /// With `--check`: 200 instances of one asset sharing their levels instead.
+    #[arg(long, requires = "check")]
+    shared: bool,
 }
 
 fn main() {
     let args = <Args as clap::Parser>::parse();
     let result = match args.check {
+        Some(dir) if args.shared => run_shared_check(&dir, args.cpu_building),
         Some(dir) => run_check(&dir, args.cpu_building),
         None => run_bench(&args.scene, args.frames as usize, args.hysteresis),
     };
@@ -492,6 +502,78 @@ fn aerobic_scene(hysteresis: u32) -> Result<Bench, String> {
 #[derive(Resource, Clone, Default)]
 struct Captures(Arc<Mutex<Vec<Option<Image>>>>);
 
+/// Screenshots of `images`, taken a few frames from now.
+fn capture(
+    app: &mut App,
+    images: &[Handle<Image>],
+    captures: &Captures,
+) -> Result<Vec<Image>, String> {
+    captures
+        .0
+        .lock()
+        .expect("captures")
+        .iter_mut()
+        .for_each(|c| *c = None);
+    for (i, image) in images.iter().enumerate() {
+        app.world_mut()
+            .spawn(Screenshot::image(image.clone()))
+            .observe(
+                move |captured: On<ScreenshotCaptured>, captures: Res<Captures>| {
+                    captures.0.lock().expect("captures")[i] = Some(captured.image.clone());
+                },
+            );
+    }
+    // Readbacks arrive a few frames later, later still while pipelines compile on a
+    // busy machine.
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(120) {
+        app.update();
+        let done = captures
+            .0
+            .lock()
+            .expect("captures")
+            .iter()
+            .all(Option::is_some);
+        if done {
+            return Ok(captures
+                .0
+                .lock()
+                .expect("captures")
+                .iter()
+                .map(|c| c.clone().expect("captured"))
+                .collect());
+        }
+    }
+    Err("the screenshots did not arrive within two minutes".into())
+}
+
+/// Lets the pipelines compile (slowly on lavapipe) until every view shows the scene.
+fn wait_until_drawn(
+    app: &mut App,
+    images: &[Handle<Image>],
+    captures: &Captures,
+    dir: &Path,
+) -> Result<(), String> {
+    let mut shots = Vec::new();
+    for _ in 0..60 {
+        for _ in 0..5 {
+            app.update();
+        }
+        shots = capture(app, images, captures)?;
+        if shots.iter().all(|s| common::varied(s) > 0.2) {
+            return Ok(());
+        }
+    }
+    for (i, shot) in shots.iter().enumerate() {
+        common::save_image(shot, &dir.join(format!("view{i}_blank.png")))?;
+    }
+    Err(format!(
+        "the scene was never drawn (fraction of pixels unlike the first: {:?}); see {}",
+        shots.iter().map(common::varied).collect::<Vec<_>>(),
+        dir.display()
+    ))
+}
+
 fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
     let mut app = render_app(cpu_building, Some(ASSETS));
@@ -582,68 +664,9 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     // The mannequin dances from the start.
     clip::start_clip(&mut app, &gltf, &[dancer], None, 0.7)?;
 
-    // Let the pipelines compile and the first levels land.
     let mut changes = 0usize;
-    let capture = |app: &mut App| -> Result<Vec<Image>, String> {
-        captures
-            .0
-            .lock()
-            .expect("captures")
-            .iter_mut()
-            .for_each(|c| *c = None);
-        for (i, image) in images.iter().enumerate() {
-            app.world_mut()
-                .spawn(Screenshot::image(image.clone()))
-                .observe(
-                    move |captured: On<ScreenshotCaptured>, captures: Res<Captures>| {
-                        captures.0.lock().expect("captures")[i] = Some(captured.image.clone());
-                    },
-                );
-        }
-        // Readbacks arrive a few frames later, later still while pipelines compile on a
-        // busy machine.
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(120) {
-            app.update();
-            let done = captures
-                .0
-                .lock()
-                .expect("captures")
-                .iter()
-                .all(Option::is_some);
-            if done {
-                return Ok(captures
-                    .0
-                    .lock()
-                    .expect("captures")
-                    .iter()
-                    .map(|c| c.clone().expect("captured"))
-                    .collect());
-            }
-        }
-        Err("the screenshots did not arrive within two minutes".into())
-    };
-    // Wait until both views show the scene (pipelines compile slowly on lavapipe).
-    let mut shots = Vec::new();
-    for _ in 0..60 {
-        for _ in 0..5 {
-            app.update();
-        }
-        shots = capture(&mut app)?;
-        if shots.iter().all(|s| common::varied(s) > 0.2) {
-            break;
-        }
-    }
-    if !shots.iter().all(|s| common::varied(s) > 0.2) {
-        for (i, shot) in shots.iter().enumerate() {
-            common::save_image(shot, &dir.join(format!("view{i}_blank.png")))?;
-        }
-        return Err(format!(
-            "the scene was never drawn (fraction of pixels unlike the first: {:?}); see {}",
-            shots.iter().map(common::varied).collect::<Vec<_>>(),
-            dir.display()
-        ));
-    }
+    let shoot = |app: &mut App| capture(app, &images, &captures);
+    wait_until_drawn(&mut app, &images, &captures, dir)?;
 
     let players: Vec<Entity> = app
         .world_mut()
@@ -672,7 +695,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         app.update();
         still += app.world().resource::<AslodStats>().regions_changed;
     }
-    let lod = capture(&mut app)?;
+    let lod = shoot(&mut app)?;
 
     // The reference: every region as a plain mesh at its final level, made fresh.
     let mut counts = Vec::new();
@@ -718,7 +741,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     for _ in 0..6 {
         app.update();
     }
-    let fresh = capture(&mut app)?;
+    let fresh = shoot(&mut app)?;
     let mut diffs = Vec::new();
     for (i, (a, b)) in lod.iter().zip(&fresh).enumerate() {
         common::save_image(a, &dir.join(format!("view{i}_lod.png")))?;
@@ -732,6 +755,155 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         "changed_while_still": still,
         "counts": counts,
         "plain_meshes": plain.len(),
+        "views": diffs.iter().map(|(max, frac)| serde_json::json!({
+            "max_channel_difference": max,
+            "fraction_differing": frac,
+        })).collect::<Vec<_>>(),
+        "varied": lod.iter().map(common::varied).collect::<Vec<_>>(),
+    });
+    std::fs::write(
+        dir.join("check.json"),
+        serde_json::to_string_pretty(&json).expect("json"),
+    )
+    .map_err(|e| format!("write check.json: {e}"))?;
+    println!("{json}");
+    Ok(())
+}
+
+/// `--check --shared`: 200 instances of one patch with [`SharedLevels`], at every distance
+/// from two cameras (one with a depth prepass) under a shadow-casting light, change levels
+/// under a swinging budget; then each region is drawn as a plain mesh built fresh at its
+/// final level (a new cache walked straight there, the region's whole vertex table) and the
+/// screenshots are compared.
+fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
+    let mut app = render_app(cpu_building, Some(ASSETS));
+    app.world_mut().resource_mut::<PolygonBudget>().total = 60_000;
+    let world = app.world_mut();
+    let patch = scene::patch(33);
+    let grid = Partition::grid(&patch, GridPlane::XZ, 4, 4).expect("grid");
+    let patch = MultiresMesh::from_indexed(&patch, &grid).map_err(|e| e.to_string())?;
+    let patch = world.resource_mut::<Assets<MultiresMesh>>().add(patch);
+    let grey = world
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::from_color(Color::srgb(0.8, 0.8, 0.75)));
+    let models: Vec<Entity> = (0..200)
+        .map(|i| {
+            let at = Vec3::new(
+                (i % 20) as f32 * 17.0 - 160.0,
+                0.0,
+                -((i / 20) as f32) * 17.0,
+            );
+            world
+                .spawn((
+                    MultiresModel(patch.clone()),
+                    SharedLevels::default(),
+                    MeshMaterial3d(grey.clone()),
+                    Transform::from_translation(at),
+                ))
+                .id()
+        })
+        .collect();
+    world.spawn((
+        DirectionalLight {
+            illuminance: 12_000.0,
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(4.0, 10.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    let images = [target(&mut app, 192, 108), target(&mut app, 192, 108)];
+    let world = app.world_mut();
+    world.spawn((
+        Camera3d::default(),
+        RenderTarget::Image(images[0].clone().into()),
+        DepthPrepass,
+        Msaa::Off,
+        Transform::from_xyz(0.0, 9.0, 14.0).looking_at(Vec3::new(0.0, 0.0, -40.0), Vec3::Y),
+    ));
+    world.spawn((
+        Camera3d::default(),
+        Camera {
+            order: 1,
+            ..default()
+        },
+        RenderTarget::Image(images[1].clone().into()),
+        Msaa::Off,
+        Transform::from_xyz(-170.0, 30.0, 20.0).looking_at(Vec3::new(-60.0, 0.0, -80.0), Vec3::Y),
+    ));
+    let captures = Captures(Arc::new(Mutex::new(vec![None, None])));
+    app.insert_resource(captures.clone());
+    wait_until_drawn(&mut app, &images, &captures, dir)?;
+
+    let mut changes = 0;
+    let mut most_shared = 0;
+    for budget in [60_000, 8_000, 40_000, 5_000, 30_000] {
+        app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+        for _ in 0..2 {
+            app.update();
+            let stats = app.world().resource::<AslodStats>();
+            changes += stats.regions_changed;
+            most_shared = most_shared.max(stats.shared_meshes);
+        }
+    }
+    for _ in 0..4 {
+        app.update();
+    }
+    let lod = capture(&mut app, &images, &captures)?;
+    let stats = *app.world().resource::<AslodStats>();
+
+    // The reference: every region a plain mesh built fresh at its final level.
+    let world = app.world_mut();
+    let mut counts = std::collections::BTreeSet::new();
+    let mut fresh = Vec::new();
+    for &model in &models {
+        let instance = world.get::<MultiresInstance>(model).ok_or("no instance")?;
+        let regions = instance.regions();
+        let mut caches = RegionCaches::new(regions);
+        for r in 0..regions.regions().len() {
+            let count = instance.caches().triangle_count(r);
+            caches.set_triangle_count(regions, r, count);
+            counts.insert((r, count));
+        }
+        let transform = *world.get::<Transform>(model).ok_or("no transform")?;
+        for r in 0..regions.regions().len() {
+            let mut indices = Vec::new();
+            caches.write_indices(regions, r, &mut indices);
+            let table = regions.regions()[r].progressive_mesh().vertices();
+            let vertices = IndexedMesh {
+                joints: None,
+                weights: None,
+                ..table.clone()
+            };
+            fresh.push((to_bevy_mesh(&vertices, &indices), transform));
+        }
+    }
+    let regions = fresh.len();
+    for model in models {
+        world.entity_mut(model).despawn();
+    }
+    for (mesh, transform) in fresh {
+        let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh);
+        world.spawn((Mesh3d(mesh), MeshMaterial3d(grey.clone()), transform));
+    }
+    for _ in 0..6 {
+        app.update();
+    }
+    let plain = capture(&mut app, &images, &captures)?;
+    let mut diffs = Vec::new();
+    for (i, (a, b)) in lod.iter().zip(&plain).enumerate() {
+        common::save_image(a, &dir.join(format!("view{i}_shared.png")))?;
+        common::save_image(b, &dir.join(format!("view{i}_fresh.png")))?;
+        diffs.push(common::compare(a, b));
+    }
+    let json = serde_json::json!({
+        "gpu_building": !cpu_building,
+        "regions": regions,
+        "regions_changed": changes,
+        "distinct_levels": counts.len(),
+        "shared_meshes": stats.shared_meshes,
+        "most_shared_meshes": most_shared,
+        "triangles": stats.triangles,
         "views": diffs.iter().map(|(max, frac)| serde_json::json!({
             "max_channel_difference": max,
             "fraction_differing": frac,

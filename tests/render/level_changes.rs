@@ -60,3 +60,54 @@ fn level_changes_draw_the_same_as_fresh_meshes() {
         }
     }
 }
+
+/// 200 instances of one asset with `SharedLevels`, at mixed levels, draw like plain meshes
+/// built fresh at those levels (under a depth prepass, a shadow-casting light and two
+/// cameras), while holding far fewer meshes than regions.
+#[test]
+fn shared_levels_draw_the_same_as_fresh_meshes() {
+    if !require_vulkan("render") {
+        return;
+    }
+    let binary = example_binary("render_cost");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("level-changes-shared");
+    let _ = std::fs::remove_dir_all(&dir);
+    let output = Command::new(&binary)
+        .args(["--shared", "--check"])
+        .arg(&dir)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run the render_cost example");
+    let log = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        output.status.success(),
+        "render_cost --shared --check failed: {}\n{log}",
+        output.status
+    );
+    let text = std::fs::read_to_string(dir.join("check.json")).expect("check.json");
+    let json: serde_json::Value = serde_json::from_str(&text).expect("valid json");
+    let regions = json["regions"].as_u64().expect("regions");
+    assert_eq!(regions, 200 * 16);
+    let levels = json["distinct_levels"].as_u64().expect("distinct_levels");
+    assert!(
+        levels > 16 * 3,
+        "the regions show only {levels} (region, level) pairs"
+    );
+    let shared = json["shared_meshes"].as_u64().expect("shared_meshes");
+    assert!(
+        shared > 0 && shared < regions / 4,
+        "{shared} level meshes for {regions} regions"
+    );
+    assert!(json["regions_changed"].as_u64().expect("changed") > 200);
+    for (i, view) in json["views"].as_array().expect("views").iter().enumerate() {
+        let varied = json["varied"][i].as_f64().expect("varied");
+        assert!(varied > 0.2, "view {i} looks blank ({varied:.3})");
+        let fraction = view["fraction_differing"].as_f64().expect("fraction");
+        let max = view["max_channel_difference"].as_u64().expect("max");
+        assert!(
+            fraction <= 0.0002,
+            "view {i}: {fraction:.4} of pixels differ (max {max}) from the fresh meshes; see {}",
+            dir.display()
+        );
+    }
+}
