@@ -778,7 +778,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
 fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
     let mut app = render_app(cpu_building, Some(ASSETS));
-    app.world_mut().resource_mut::<PolygonBudget>().total = 60_000;
+    app.world_mut().resource_mut::<PolygonBudget>().total = 120_000;
     let world = app.world_mut();
     let patch = scene::patch(33);
     let grid = Partition::grid(&patch, GridPlane::XZ, 4, 4).expect("grid");
@@ -837,7 +837,7 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
 
     let mut changes = 0;
     let mut most_shared = 0;
-    for budget in [60_000, 8_000, 40_000, 5_000, 30_000] {
+    for budget in [120_000, 40_000, 200_000, 50_000, 100_000] {
         app.world_mut().resource_mut::<PolygonBudget>().total = budget;
         for _ in 0..2 {
             app.update();
