@@ -17,6 +17,16 @@
 //! the two pairs of screenshots are compared. Writes the PNGs and `check.json` into DIR.
 //! `--cpu-building` turns Bevy's GPU mesh preprocessing off.
 //!
+//! `render_cost --instances 1000,10000 [--frames N]`: the instance bench. N instances of one
+//! 20,480-triangle sphere scattered on a plane, drawn three ways along one camera path over
+//! them (64×36 target): (a) one shared full-detail mesh; (b) the discrete LOD a Bevy user
+//! builds today, a chain of meshoptimizer levels each half the one before, shared meshes
+//! swapped by `VisibilityRange` at distances √2 apart; (c) `SharedLevels` under a budget
+//! equal to the median triangles (b) drew. Prints per way (medians over the path): our
+//! systems, the render world's extraction, preparation and instance rebuild, the bytes of
+//! `Mesh` assets (vertex and index data, what the mesh allocator holds), the triangles and
+//! mesh entities visible, and the whole frame.
+//!
 //! `render_cost --check DIR --shared`: the same for 200 instances of one patch with
 //! `SharedLevels`, at every distance: their regions drawn from the shared level meshes
 //! against plain meshes built fresh at the same levels.
@@ -35,6 +45,7 @@ use common::terrain;
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
 use bevy::camera::visibility::NoFrustumCulling;
+use bevy::camera::visibility::VisibilityRange;
 use bevy::core_pipeline::prepass::DepthPrepass;
 use bevy::gltf::Gltf;
 use bevy::platform::time::Instant;
@@ -86,11 +97,17 @@ struct Args {
     /// With `--check`: 200 instances of one asset sharing their levels instead.
     #[arg(long, requires = "check")]
     shared: bool,
+    /// Run the instance bench instead: N instances of one 20,480-triangle sphere drawn with
+    /// no LOD, with meshoptimizer levels under `VisibilityRange`, and with `SharedLevels`
+    /// (comma-separated counts).
+    #[arg(long, value_name = "N,N", value_delimiter = ',')]
+    instances: Vec<usize>,
 }
 
 fn main() {
     let args = <Args as clap::Parser>::parse();
     let result = match args.check {
+        None if !args.instances.is_empty() => run_instances(&args.instances, args.frames as usize),
         Some(dir) if args.shared => run_shared_check(&dir, args.cpu_building),
         Some(dir) => run_check(&dir, args.cpu_building),
         None => run_bench(&args.scene, args.frames as usize, args.hysteresis),
@@ -336,14 +353,7 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
             }
         }
     }
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
+    let cpu = cpu_name();
     println!(
         "render_cost {scene_name}: P = {budget}, hysteresis {hysteresis}, 32x18 target, {frames} frames x {rounds} rounds per row, {} build, {cpu}, {} cores",
         if cfg!(debug_assertions) {
@@ -382,6 +392,18 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
         );
     }
     Ok(())
+}
+
+/// The CPU's model name.
+fn cpu_name() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into())
 }
 
 /// A bench scene: the app, its budget, its camera and the camera's path over `t` in `0..1`.
@@ -917,4 +939,267 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     .map_err(|e| format!("write check.json: {e}"))?;
     println!("{json}");
     Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// The instance bench.
+
+/// The instance bench's sphere: 20,480 triangles, radius 1.
+fn instance_sphere() -> Result<Mesh, String> {
+    Sphere::new(1.0).mesh().ico(5).map_err(|e| e.to_string())
+}
+
+/// Instance `i` of `n`: a jittered square grid 4 units apart.
+fn instance_position(i: usize, n: usize) -> Vec3 {
+    let side = scene::side(n);
+    let h = (i as u32).wrapping_mul(2_654_435_761);
+    let jitter = |k: u32| ((h >> k) & 0xff) as f32 / 255.0 - 0.5;
+    Vec3::new(
+        (i % side) as f32 * 4.0 + jitter(0),
+        1.0,
+        (i / side) as f32 * 4.0 + jitter(8),
+    )
+}
+
+/// The camera over the field at `t` in `0..1`: low along its diagonal, looking ahead.
+fn instance_camera(t: f32, n: usize) -> Transform {
+    let extent = scene::side(n) as f32 * 4.0;
+    let eye = Vec3::new(0.1, 4.0, 0.0).lerp(Vec3::new(extent * 0.8, 4.0, extent * 0.7), t);
+    Transform::from_translation(eye).looking_at(eye + Vec3::new(1.0, -0.25, 0.9), Vec3::Y)
+}
+
+/// meshoptimizer's chain: full detail, then each level about half the one before, down to
+/// about 300 triangles.
+fn meshopt_chain(mesh: &Mesh) -> Result<Vec<Mesh>, String> {
+    let indexed = bevy_aslod::bevy_mesh::from_bevy_mesh(mesh).map_err(|e| e.to_string())?;
+    let positions: Vec<[f32; 3]> = indexed.positions.iter().map(|p| p.to_array()).collect();
+    let adapter = meshopt::VertexDataAdapter::new(bytemuck::cast_slice(&positions), 12, 0)
+        .map_err(|e| e.to_string())?;
+    let mut chain = vec![mesh.clone()];
+    let mut indices = indexed.indices.clone();
+    while indices.len() / 3 > 600 {
+        indices = meshopt::simplify(
+            &indices,
+            &adapter,
+            indices.len() / 2,
+            1.0,
+            meshopt::SimplifyOptions::None,
+            None,
+        );
+        let mut level = mesh.clone();
+        level.insert_indices(bevy::mesh::Indices::U32(indices.clone()));
+        chain.push(level);
+    }
+    Ok(chain)
+}
+
+/// Vertex and index bytes of every `Mesh` asset.
+fn mesh_asset_bytes(app: &App) -> u64 {
+    app.world()
+        .resource::<Assets<Mesh>>()
+        .iter()
+        .map(|(_, mesh)| {
+            let indices = match mesh.indices() {
+                Some(bevy::mesh::Indices::U16(i)) => i.len() * 2,
+                Some(bevy::mesh::Indices::U32(i)) => i.len() * 4,
+                None => 0,
+            };
+            (mesh.count_vertices() * mesh.get_vertex_size() as usize + indices) as u64
+        })
+        .sum()
+}
+
+/// Triangles and mesh entities the cameras see (after frustum culling and visibility ranges).
+fn visible(app: &mut App) -> (u64, u64) {
+    let world = app.world_mut();
+    let mut query = world.query::<(&Mesh3d, &ViewVisibility)>();
+    let meshes = world.resource::<Assets<Mesh>>();
+    let (mut triangles, mut entities) = (0, 0);
+    for (mesh, seen) in query.iter(world) {
+        if seen.get() {
+            entities += 1;
+            triangles += meshes
+                .get(&mesh.0)
+                .and_then(Mesh::indices)
+                .map_or(0, |i| i.len() as u64 / 3);
+        }
+    }
+    (triangles, entities)
+}
+
+/// One frame of the instance bench.
+struct InstanceFrame {
+    /// The plugin's systems (allocation and update).
+    ours_ms: f64,
+    /// The render world's extraction, preparation and instance rebuild.
+    render_ms: f64,
+    /// [`mesh_asset_bytes`].
+    mesh_bytes: u64,
+    /// Triangles visible ([`visible`]).
+    triangles: u64,
+    /// Mesh entities visible.
+    entities: u64,
+    /// The plugin's total (every model, in view or not).
+    total: u64,
+    /// The whole frame.
+    frame_ms: f64,
+}
+
+/// One way of drawing the instances: its app along the path, frame by frame.
+fn run_way(
+    way: &str,
+    n: usize,
+    frames: usize,
+    budget: Option<u32>,
+) -> Result<Vec<InstanceFrame>, String> {
+    let (mut app, camera) = bench_app(budget.unwrap_or(1), 0, None);
+    let sphere = instance_sphere()?;
+    let material = app
+        .world_mut()
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::from_color(Color::srgb(0.6, 0.7, 0.5)));
+    match way {
+        "a" => {
+            let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(sphere);
+            for i in 0..n {
+                app.world_mut().spawn((
+                    Mesh3d(mesh.clone()),
+                    MeshMaterial3d(material.clone()),
+                    Transform::from_translation(instance_position(i, n)),
+                ));
+            }
+        }
+        "b" => {
+            let chain: Vec<Handle<Mesh>> = meshopt_chain(&sphere)?
+                .into_iter()
+                .map(|m| app.world_mut().resource_mut::<Assets<Mesh>>().add(m))
+                .collect();
+            // Level k from 6·√2^(k-1) units on: a level's triangles halve as its projected
+            // area does.
+            let distance = |k: usize| {
+                if k == 0 {
+                    0.0
+                } else {
+                    6.0 * std::f32::consts::SQRT_2.powi(k as i32 - 1)
+                }
+            };
+            for i in 0..n {
+                let at = Transform::from_translation(instance_position(i, n));
+                for (k, mesh) in chain.iter().enumerate() {
+                    let end = if k + 1 == chain.len() {
+                        f32::MAX
+                    } else {
+                        distance(k + 1)
+                    };
+                    app.world_mut().spawn((
+                        Mesh3d(mesh.clone()),
+                        MeshMaterial3d(material.clone()),
+                        at,
+                        VisibilityRange::abrupt(distance(k), end),
+                    ));
+                }
+            }
+        }
+        _ => {
+            let asset = MultiresMesh::from_bevy_mesh(&sphere, PartitionSpec::Clusters(4))
+                .map_err(|e| e.to_string())?;
+            let asset = app
+                .world_mut()
+                .resource_mut::<Assets<MultiresMesh>>()
+                .add(asset);
+            for i in 0..n {
+                app.world_mut().spawn((
+                    MultiresModel(asset.clone()),
+                    SharedLevels::default(),
+                    MeshMaterial3d(material.clone()),
+                    Transform::from_translation(instance_position(i, n)),
+                ));
+            }
+        }
+    }
+    *app.world_mut()
+        .get_mut::<Transform>(camera)
+        .ok_or("no camera")? = instance_camera(0.0, n);
+    // Pipelines compile slowly on a software rasteriser.
+    for _ in 0..60 {
+        app.update();
+    }
+    let mut out = Vec::new();
+    for frame in 0..frames {
+        *app.world_mut()
+            .get_mut::<Transform>(camera)
+            .ok_or("no camera")? = instance_camera(frame as f32 / frames as f32, n);
+        let start = Instant::now();
+        app.update();
+        let frame_ms = start.elapsed().as_secs_f64() * 1e3;
+        let stats = *app.world().resource::<AslodStats>();
+        let (triangles, entities) = visible(&mut app);
+        let cost = render_cost(&app);
+        out.push(InstanceFrame {
+            ours_ms: stats.allocation_ms + stats.update_ms,
+            render_ms: cost.extract_ms + cost.prepare_ms + cost.instances_ms,
+            mesh_bytes: mesh_asset_bytes(&app),
+            triangles,
+            entities,
+            total: stats.triangles,
+            frame_ms,
+        });
+    }
+    Ok(out)
+}
+
+fn run_instances(counts: &[usize], frames: usize) -> Result<(), String> {
+    println!(
+        "render_cost --instances: 20,480-triangle sphere, 64x36 target... see the rows; {} build, {}, {} cores",
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        },
+        cpu_name(),
+        std::thread::available_parallelism().map_or(0, usize::from)
+    );
+    println!(
+        "| instances | way | budget | ours ms | render world ms | mesh bytes | triangles visible | mesh entities visible | frame ms |"
+    );
+    println!("|---:|---|---:|---:|---:|---:|---:|---:|---:|");
+    for &n in counts {
+        let mut rows = Vec::new();
+        let a = run_way("a", n, frames, None)?;
+        rows.push(("(a) no LOD", None, a));
+        let b = run_way("b", n, frames, None)?;
+        let budget = median(&b, &|f| f.triangles as f64) as u32;
+        rows.push(("(b) meshopt chain + VisibilityRange", None, b));
+        let c = run_way("c", n, frames, Some(budget.max(1)))?;
+        rows.push(("(c) SharedLevels", Some(budget), c));
+        for (way, budget, frames) in &rows {
+            println!(
+                "| {n} | {way} | {} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.1} |",
+                budget.map_or("–".to_string(), |b| b.to_string()),
+                median(frames, &|f| f.ours_ms),
+                median(frames, &|f| f.render_ms),
+                median(frames, &|f| f.mesh_bytes as f64),
+                median(frames, &|f| f.triangles as f64),
+                median(frames, &|f| f.entities as f64),
+                median(frames, &|f| f.frame_ms),
+            );
+        }
+        let over = rows[2]
+            .2
+            .iter()
+            .filter(|f| f.total > u64::from(budget))
+            .count();
+        println!(
+            "(c): the plugin's total exceeded P in {over} of {} frames (its floor: every model at its coarsest)",
+            rows[2].2.len()
+        );
+    }
+    Ok(())
+}
+
+/// The median of `f` over `frames`.
+fn median(frames: &[InstanceFrame], f: &dyn Fn(&InstanceFrame) -> f64) -> f64 {
+    let mut v: Vec<f64> = frames.iter().map(f).collect();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
