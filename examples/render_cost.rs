@@ -946,7 +946,7 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
 
 /// The instance bench's sphere: 20,480 triangles, radius 1.
 fn instance_sphere() -> Result<Mesh, String> {
-    Sphere::new(1.0).mesh().ico(5).map_err(|e| e.to_string())
+    Sphere::new(1.0).mesh().ico(31).map_err(|e| e.to_string())
 }
 
 /// Instance `i` of `n`: a jittered square grid 4 units apart.
@@ -969,7 +969,8 @@ fn instance_camera(t: f32, n: usize) -> Transform {
 }
 
 /// meshoptimizer's chain: full detail, then each level about half the one before, down to
-/// about 300 triangles.
+/// about 300 triangles, each holding only the vertices it uses (as a user exporting levels
+/// would have them).
 fn meshopt_chain(mesh: &Mesh) -> Result<Vec<Mesh>, String> {
     let indexed = bevy_aslod::bevy_mesh::from_bevy_mesh(mesh).map_err(|e| e.to_string())?;
     let positions: Vec<[f32; 3]> = indexed.positions.iter().map(|p| p.to_array()).collect();
@@ -986,9 +987,19 @@ fn meshopt_chain(mesh: &Mesh) -> Result<Vec<Mesh>, String> {
             meshopt::SimplifyOptions::None,
             None,
         );
-        let mut level = mesh.clone();
-        level.insert_indices(bevy::mesh::Indices::U32(indices.clone()));
-        chain.push(level);
+        let mut remap = vec![u32::MAX; positions.len()];
+        let mut used = Vec::new();
+        let local: Vec<u32> = indices
+            .iter()
+            .map(|&i| {
+                if remap[i as usize] == u32::MAX {
+                    remap[i as usize] = used.len() as u32;
+                    used.push(i);
+                }
+                remap[i as usize]
+            })
+            .collect();
+        chain.push(to_bevy_mesh(&indexed.subset(&used), &local));
     }
     Ok(chain)
 }
