@@ -343,6 +343,7 @@ impl RegionCaches {
     /// # Panics
     /// Panics when `region` is out of range.
     #[inline]
+    #[cfg_attr(not(feature = "bevy"), allow(dead_code))]
     pub(crate) fn mark_written(&mut self, region: usize) {
         self.dirty[region] = false;
     }
