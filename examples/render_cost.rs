@@ -764,12 +764,6 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         app.update();
     }
     let fresh = shoot(&mut app)?;
-    let mut diffs = Vec::new();
-    for (i, (a, b)) in lod.iter().zip(&fresh).enumerate() {
-        common::save_image(a, &dir.join(format!("view{i}_lod.png")))?;
-        common::save_image(b, &dir.join(format!("view{i}_fresh.png")))?;
-        diffs.push(common::compare(a, b));
-    }
     let json = serde_json::json!({
         "gpu_building": !cpu_building,
         "regions_changed": changes,
@@ -777,12 +771,30 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         "changed_while_still": still,
         "counts": counts,
         "plain_meshes": plain.len(),
-        "views": diffs.iter().map(|(max, frac)| serde_json::json!({
+    });
+    write_check(dir, ("lod", &lod), &fresh, json)
+}
+
+/// Saves the two sets of screenshots into `dir`, adds their differences (`views`) and how
+/// varied the first set is (`varied`) to `json`, and writes it as `check.json`.
+fn write_check(
+    dir: &Path,
+    (name, shots): (&str, &[Image]),
+    fresh: &[Image],
+    mut json: serde_json::Value,
+) -> Result<(), String> {
+    let mut views = Vec::new();
+    for (i, (a, b)) in shots.iter().zip(fresh).enumerate() {
+        common::save_image(a, &dir.join(format!("view{i}_{name}.png")))?;
+        common::save_image(b, &dir.join(format!("view{i}_fresh.png")))?;
+        let (max, frac) = common::compare(a, b);
+        views.push(serde_json::json!({
             "max_channel_difference": max,
             "fraction_differing": frac,
-        })).collect::<Vec<_>>(),
-        "varied": lod.iter().map(common::varied).collect::<Vec<_>>(),
-    });
+        }));
+    }
+    json["views"] = views.into();
+    json["varied"] = shots.iter().map(common::varied).collect::<Vec<_>>().into();
     std::fs::write(
         dir.join("check.json"),
         serde_json::to_string_pretty(&json).expect("json"),
@@ -912,12 +924,6 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         app.update();
     }
     let plain = capture(&mut app, &images, &captures)?;
-    let mut diffs = Vec::new();
-    for (i, (a, b)) in lod.iter().zip(&plain).enumerate() {
-        common::save_image(a, &dir.join(format!("view{i}_shared.png")))?;
-        common::save_image(b, &dir.join(format!("view{i}_fresh.png")))?;
-        diffs.push(common::compare(a, b));
-    }
     let json = serde_json::json!({
         "gpu_building": !cpu_building,
         "regions": regions,
@@ -926,19 +932,8 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         "shared_meshes": stats.shared_meshes,
         "most_shared_meshes": most_shared,
         "triangles": stats.triangles,
-        "views": diffs.iter().map(|(max, frac)| serde_json::json!({
-            "max_channel_difference": max,
-            "fraction_differing": frac,
-        })).collect::<Vec<_>>(),
-        "varied": lod.iter().map(common::varied).collect::<Vec<_>>(),
     });
-    std::fs::write(
-        dir.join("check.json"),
-        serde_json::to_string_pretty(&json).expect("json"),
-    )
-    .map_err(|e| format!("write check.json: {e}"))?;
-    println!("{json}");
-    Ok(())
+    write_check(dir, ("shared", &lod), &plain, json)
 }
 
 // ---------------------------------------------------------------------------------------
