@@ -19,7 +19,7 @@
 //!
 //! `render_cost --instances 1000,10000 [--frames N]`: the instance bench. N instances of one
 //! 20,480-triangle sphere scattered on a plane, drawn three ways along one camera path over
-//! them (64×36 target): (a) one shared full-detail mesh; (b) the discrete LOD a Bevy user
+//! them (a 32×18 target; image error at 1280×720): (a) one shared full-detail mesh; (b) the discrete LOD a Bevy user
 //! builds today, a chain of meshoptimizer levels each half the one before, shared meshes
 //! swapped by `VisibilityRange` at distances √2 apart; (c) `SharedLevels` under a budget
 //! equal to the median triangles (b) drew. Prints per way (medians over the path): our
@@ -1057,7 +1057,7 @@ fn run_way(
     n: usize,
     frames: usize,
     budget: Option<u32>,
-) -> Result<Vec<InstanceFrame>, String> {
+) -> Result<(Vec<InstanceFrame>, Vec<Image>), String> {
     let (mut app, camera) = bench_app(budget.unwrap_or(1), 0, None);
     let sphere = instance_sphere()?;
     let material = app
@@ -1151,12 +1151,32 @@ fn run_way(
             frame_ms,
         });
     }
-    Ok(out)
+    // Image error: the same camera at a few points of the path, rendered at 1280×720.
+    let big = target(&mut app, 1280, 720);
+    app.world_mut()
+        .entity_mut(camera)
+        .insert(RenderTarget::Image(big.clone().into()));
+    let captures = Captures(Arc::new(Mutex::new(vec![None])));
+    app.insert_resource(captures.clone());
+    let mut views = Vec::new();
+    for t in ERROR_VIEWS {
+        *app.world_mut()
+            .get_mut::<Transform>(camera)
+            .ok_or("no camera")? = instance_camera(t, n);
+        for _ in 0..3 {
+            app.update();
+        }
+        views.extend(capture(&mut app, std::slice::from_ref(&big), &captures)?);
+    }
+    Ok((out, views))
 }
+
+/// Where along the path the image error is taken.
+const ERROR_VIEWS: [f32; 3] = [0.2, 0.5, 0.8];
 
 fn run_instances(counts: &[usize], frames: usize) -> Result<(), String> {
     println!(
-        "render_cost --instances: 20,480-triangle sphere, 64x36 target... see the rows; {} build, {}, {} cores",
+        "render_cost --instances: a 20,480-triangle sphere, 32x18 target, image error at 1280x720; {} build, {}, {} cores",
         if cfg!(debug_assertions) {
             "debug"
         } else {
@@ -1166,21 +1186,27 @@ fn run_instances(counts: &[usize], frames: usize) -> Result<(), String> {
         std::thread::available_parallelism().map_or(0, usize::from)
     );
     println!(
-        "| instances | way | budget | ours ms | render world ms | mesh bytes | triangles visible | mesh entities visible | frame ms |"
+        "| instances | way | budget | ours ms | render world ms | mesh bytes | triangles visible | mesh entities visible | frame ms | PSNR against (a), median of 3 views (worst) |"
     );
-    println!("|---:|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|");
     for &n in counts {
         let mut rows = Vec::new();
-        let a = run_way("a", n, frames, None)?;
-        rows.push(("(a) no LOD", None, a));
-        let b = run_way("b", n, frames, None)?;
+        let (a, reference) = run_way("a", n, frames, None)?;
+        rows.push(("(a) no LOD", None, a, reference.clone()));
+        let (b, b_views) = run_way("b", n, frames, None)?;
         let budget = median(&b, &|f| f.triangles as f64) as u32;
-        rows.push(("(b) meshopt chain + VisibilityRange", None, b));
-        let c = run_way("c", n, frames, Some(budget.max(1)))?;
-        rows.push(("(c) SharedLevels", Some(budget), c));
-        for (way, budget, frames) in &rows {
+        rows.push(("(b) meshopt chain + VisibilityRange", None, b, b_views));
+        let (c, c_views) = run_way("c", n, frames, Some(budget.max(1)))?;
+        rows.push(("(c) SharedLevels", Some(budget), c, c_views));
+        for (way, budget, frames, views) in &rows {
+            let mut psnr: Vec<f64> = views
+                .iter()
+                .zip(&reference)
+                .map(|(v, r)| common::psnr_mad(v, r).0)
+                .collect();
+            psnr.sort_by(f64::total_cmp);
             println!(
-                "| {n} | {way} | {} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.1} |",
+                "| {n} | {way} | {} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} ({:.1}) |",
                 budget.map_or("–".to_string(), |b| b.to_string()),
                 median(frames, &|f| f.ours_ms),
                 median(frames, &|f| f.render_ms),
@@ -1188,6 +1214,8 @@ fn run_instances(counts: &[usize], frames: usize) -> Result<(), String> {
                 median(frames, &|f| f.triangles as f64),
                 median(frames, &|f| f.entities as f64),
                 median(frames, &|f| f.frame_ms),
+                psnr.get(psnr.len() / 2).copied().unwrap_or(0.0),
+                psnr.first().copied().unwrap_or(0.0),
             );
         }
         let over = rows[2]

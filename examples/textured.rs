@@ -46,9 +46,6 @@ const WATER_BOTTLE: &str = concat!(
 /// between each other and wrt position"; its demo weighs normals 0.5).
 const PEER_WEIGHTS: [f32; 9] = [0.5, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
 
-/// The PSNR reported for identical images (JSON has no infinity).
-const IDENTICAL_PSNR: f64 = 100.0;
-
 /// Rendered images of a glTF scene: plain Bevy, ours and meshoptimizer's.
 #[derive(clap::Parser, Debug)]
 struct Args {
@@ -161,7 +158,7 @@ fn run(args: &Args) -> Result<(), String> {
         stage.set_full_detail(true);
         let ours_full = stage.capture_stable()?;
         let (max, fraction) = common::compare(&reference, &ours_full);
-        let (psnr, mad) = psnr_mad(&reference, &ours_full);
+        let (psnr, mad) = common::psnr_mad(&reference, &ours_full);
         let mut rows = Vec::new();
         let mut shots = vec![
             ("reference".to_string(), reference.clone()),
@@ -180,7 +177,7 @@ fn run(args: &Args) -> Result<(), String> {
                 }));
             }
             let drawn: usize = stage.model_triangles();
-            let (ours_psnr, ours_mad) = psnr_mad(&reference, &ours);
+            let (ours_psnr, ours_mad) = common::psnr_mad(&reference, &ours);
             let mut row = json!({
                 "ratio": ratio,
                 "budget": budget,
@@ -193,7 +190,7 @@ fn run(args: &Args) -> Result<(), String> {
                 stage.show(true, false);
                 let peer = stage.capture_stable()?;
                 stage.restore(swapped);
-                let (peer_psnr, peer_mad) = psnr_mad(&reference, &peer);
+                let (peer_psnr, peer_mad) = common::psnr_mad(&reference, &peer);
                 row["meshopt"] =
                     json!({ "psnr": peer_psnr, "mad": peer_mad, "triangles": peer_triangles });
                 shots.push((format!("meshopt_{ratio}"), peer));
@@ -744,36 +741,6 @@ fn procedural_glb() -> Vec<u8> {
     out.extend_from_slice(b"BIN\0");
     out.extend_from_slice(&bin);
     out
-}
-
-/// PSNR (dB, over RGB; [`IDENTICAL_PSNR`] for identical images) and mean absolute difference
-/// (per channel, of 255) between two images of one size, over the pixels where either shows
-/// the scene (not the clear colour, which is the first pixel's: the views keep the scene off
-/// the corners), so the background does not dilute them.
-fn psnr_mad(a: &Image, b: &Image) -> (f64, f64) {
-    let (Some(a), Some(b)) = (&a.data, &b.data) else {
-        return (0.0, 255.0);
-    };
-    let clear = &a[..4];
-    let (mut squared, mut absolute, mut count) = (0.0f64, 0.0f64, 0usize);
-    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
-        if pa == clear && pb == clear {
-            continue;
-        }
-        for c in 0..3 {
-            let d = f64::from(pa[c]) - f64::from(pb[c]);
-            squared += d * d;
-            absolute += d.abs();
-            count += 1;
-        }
-    }
-    let mse = squared / count.max(1) as f64;
-    let psnr = if mse == 0.0 {
-        IDENTICAL_PSNR
-    } else {
-        (10.0 * (255.0 * 255.0 / mse).log10()).min(IDENTICAL_PSNR)
-    };
-    (psnr, absolute / count.max(1) as f64)
 }
 
 /// The mean RGB (of 255) of the pixels an image covers (not the clear colour): a level drawn

@@ -331,3 +331,36 @@ pub fn save_image(image: &Image, path: &Path) -> Result<(), String> {
         .save(path)
         .map_err(|e| format!("save {}: {e}", path.display()))
 }
+
+/// The PSNR reported for identical images (dB; JSON has no infinity).
+pub const IDENTICAL_PSNR: f64 = 100.0;
+
+/// PSNR (dB, over RGB; [`IDENTICAL_PSNR`] for identical images) and mean absolute difference
+/// (per channel, of 255) between two images of one size, over the pixels where either shows
+/// the scene (not the clear colour, which is the first pixel's: the views keep the scene off
+/// the corners), so the background does not dilute them.
+pub fn psnr_mad(a: &Image, b: &Image) -> (f64, f64) {
+    let (Some(a), Some(b)) = (&a.data, &b.data) else {
+        return (0.0, 255.0);
+    };
+    let clear = &a[..4];
+    let (mut squared, mut absolute, mut count) = (0.0f64, 0.0f64, 0usize);
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        if pa == clear && pb == clear {
+            continue;
+        }
+        for c in 0..3 {
+            let d = f64::from(pa[c]) - f64::from(pb[c]);
+            squared += d * d;
+            absolute += d.abs();
+            count += 1;
+        }
+    }
+    let mse = squared / count.max(1) as f64;
+    let psnr = if mse == 0.0 {
+        IDENTICAL_PSNR
+    } else {
+        (10.0 * (255.0 * 255.0 / mse).log10()).min(IDENTICAL_PSNR)
+    };
+    (psnr, absolute / count.max(1) as f64)
+}
