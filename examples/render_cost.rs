@@ -19,13 +19,14 @@
 //!
 //! `render_cost --instances 1000,10000 [--frames N]`: the instance bench. N instances of one
 //! 20,480-triangle sphere scattered on a plane, drawn three ways along one camera path over
-//! them (a 32×18 target; image error at 1280×720): (a) one shared full-detail mesh; (b) the discrete LOD a Bevy user
+//! them (a 32×18 target): (a) one shared full-detail mesh; (b) the discrete LOD a Bevy user
 //! builds today, a chain of meshoptimizer levels each half the one before, shared meshes
 //! swapped by `VisibilityRange` at distances √2 apart; (c) `SharedLevels` under a budget
 //! equal to the median triangles (b) drew. Prints per way (medians over the path): our
 //! systems, the render world's extraction, preparation and instance rebuild, the bytes of
 //! `Mesh` assets (vertex and index data, what the mesh allocator holds), the triangles and
-//! mesh entities visible, and the whole frame.
+//! mesh entities visible, the whole frame, and the PSNR against (a) of three views of the
+//! path rendered at 1280×720.
 //!
 //! `render_cost --check DIR --shared`: the same for 200 instances of one patch with
 //! `SharedLevels`, at every distance: their regions drawn from the shared level meshes
