@@ -974,13 +974,13 @@ fn instance_camera(t: f32, n: usize) -> Transform {
     Transform::from_translation(eye).looking_at(eye + Vec3::new(1.0, -0.25, 0.9), Vec3::Y)
 }
 
+/// A level: the source vertices it uses, and its triangles over them.
+type Level = (Vec<u32>, Vec<u32>);
+
 /// meshoptimizer's levels below full detail: each about half the one before, down to about
 /// 300 triangles. Each is the source vertices it uses and its triangles over them (as a user
 /// exporting levels would have them).
-fn meshopt_levels(
-    positions: &[[f32; 3]],
-    indices: &[u32],
-) -> Result<Vec<(Vec<u32>, Vec<u32>)>, String> {
+fn meshopt_levels(positions: &[[f32; 3]], indices: &[u32]) -> Result<Vec<Level>, String> {
     let adapter = meshopt::VertexDataAdapter::new(bytemuck::cast_slice(positions), 12, 0)
         .map_err(|e| e.to_string())?;
     let mut levels = Vec::new();
@@ -1057,7 +1057,7 @@ fn meshopt_skinned_levels(mesh: &Mesh) -> Result<Vec<Mesh>, String> {
                     ));
                 }
             };
-            level.insert_attribute(attribute.clone(), values);
+            level.insert_attribute(*attribute, values);
         }
         level.insert_indices(Indices::U32(local));
         levels.push(level);
@@ -1113,15 +1113,14 @@ fn add_skinned_chains(app: &mut App) -> Result<(), String> {
         .collect();
     let mut chains: HashMap<AssetId<Mesh>, Vec<Handle<Mesh>>> = HashMap::new();
     for (entity, mesh, skin, material, transform, parent) in found {
-        if !chains.contains_key(&mesh.id()) {
+        if let std::collections::hash_map::Entry::Vacant(entry) = chains.entry(mesh.id()) {
             let source = world
                 .resource::<Assets<Mesh>>()
                 .get(&mesh)
                 .ok_or("a skinned mesh that is not loaded")?;
             let levels = meshopt_skinned_levels(source)?;
             let mut meshes = world.resource_mut::<Assets<Mesh>>();
-            let handles = levels.into_iter().map(|m| meshes.add(m)).collect();
-            chains.insert(mesh.id(), handles);
+            entry.insert(levels.into_iter().map(|m| meshes.add(m)).collect());
         }
         let chain = &chains[&mesh.id()];
         let levels = chain.len() + 1;
