@@ -6,7 +6,7 @@ APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libude
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
-.PHONY: demo silvretta test check-deps deps lint bench bench-bevy bench-render figure-11 compare
+.PHONY: demo silvretta test check-deps deps lint bench bench-bevy bench-render bench-instances figure-11 compare
 
 deps:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -79,6 +79,10 @@ bench-render: deps
 	$(CARGO) build --release --example render_cost
 	@for s in grid silvretta aerobic; do \
 		$(CARGO) run --release --quiet --example render_cost -- --scene $$s --frames 60; done
+
+# The instance bench: shared levels against meshoptimizer levels under VisibilityRange.
+bench-instances: deps
+	xvfb-run -a $(CARGO) run --example render_cost -- --instances 1000,10000 --crowd 100 --frames 30
 
 # ASLOD Figure 11 measured (docs/performance.md): the aerobic class at 960x540 (lavapipe is
 # bound by pixels there) and 240x135 (by geometry), 5 interleaved runs each, and the
