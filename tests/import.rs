@@ -1053,3 +1053,177 @@ fn attributes_the_importer_cannot_carry_are_named() {
     assert_eq!(colors[1], [0.0, 1.0, 0.0, 1.0]);
     assert!(mesh.tangents.is_none(), "no normal map, no tangents");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Crafted input: each of these read wrong data, or panicked, before its fix.
+
+#[test]
+fn glb_declaring_a_length_shorter_than_its_chunks_is_refused() {
+    let mut bytes = square_glb(&[0, 1, 2, 2, 1, 3], 4, r#"{"mesh":0}"#);
+    for declared in [13u32, 16, 19, 20, 24] {
+        bytes[8..12].copy_from_slice(&declared.to_le_bytes());
+        let result = no_panic(&format!("declared length {declared}"), || {
+            load_gltf_slice(&bytes, None)
+        });
+        let Err(e) = result else {
+            panic!("declared length {declared} loaded");
+        };
+        assert!(e.to_string().contains("length"), "{e}");
+    }
+}
+
+#[test]
+fn obj_with_a_byte_order_mark_keeps_its_first_vertex() {
+    let mesh = parse_obj("\u{feff}v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    assert_eq!(mesh.vertex_count(), 3);
+    assert_eq!(mesh.positions[0], Vec3::ZERO);
+}
+
+#[test]
+fn obj_line_endings_cr_crlf_and_lf_read_alike() {
+    let lf = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 3 2 4\n";
+    let expected = parse_obj(lf).unwrap();
+    for (name, text) in [
+        ("CR", lf.replace('\n', "\r")),
+        ("CRLF", lf.replace('\n', "\r\n")),
+    ] {
+        let mesh = parse_obj(&text).unwrap();
+        assert_eq!(mesh.positions, expected.positions, "{name}");
+        assert_eq!(mesh.indices, expected.indices, "{name}");
+    }
+    // Errors name the same line whatever the endings.
+    let bad = "v 0 0 0\r\nv 1 0 0\r\nv 0 1\r\n";
+    let e = parse_obj(bad).unwrap_err().to_string();
+    assert!(e.contains("line 3"), "{e}");
+    let e = parse_obj(&bad.replace("\r\n", "\r"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("line 3"), "{e}");
+}
+
+/// Twice the signed area of triangle `t` of `mesh` in the XY plane.
+fn signed_area_xy(mesh: &IndexedMesh, t: usize) -> f32 {
+    let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[mesh.indices[3 * t + k] as usize]);
+    (b - a).truncate().perp_dot((c - a).truncate())
+}
+
+#[test]
+fn obj_concave_polygons_are_triangulated_inside_their_outline() {
+    // A U (a notch from the top) and an arrow head, each starting at a corner that does not
+    // see the whole outline: a fan from it makes triangles outside the outline, flipped.
+    let shapes = [
+        (
+            "U",
+            "v 3 2 0\nv 2 2 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\nv 3 0 0\n\
+             f 1 2 3 4 5 6 7 8\n",
+            5.0,
+        ),
+        (
+            "arrow",
+            "v 0 2 0\nv 1 0 0\nv 2 2 0\nv 1 1 0\nf 1 2 3 4\n",
+            1.0,
+        ),
+    ];
+    for (name, text, area) in shapes {
+        let mesh = parse_obj(text).unwrap();
+        let corners = mesh.vertex_count();
+        assert_eq!(mesh.triangle_count(), corners - 2, "{name}");
+        let areas: Vec<f32> = (0..mesh.triangle_count())
+            .map(|t| signed_area_xy(&mesh, t))
+            .collect();
+        let sign = areas[0].signum();
+        assert!(
+            areas.iter().all(|a| a.signum() == sign && a.abs() > 1e-6),
+            "{name}: {areas:?}"
+        );
+        let total: f32 = areas.iter().map(|a| a.abs() / 2.0).sum();
+        assert!(
+            (total - area).abs() < 1e-5,
+            "{name}: area {total}, expected {area}"
+        );
+    }
+    // A concave comb of 300 corners is past the bound: an error naming it.
+    let mut comb = String::new();
+    for i in 0..150 {
+        comb += &format!("v {i} 0 0\n");
+    }
+    for i in (0..150).rev() {
+        comb += &format!("v {i} {} 0\n", 1 + i % 2);
+    }
+    comb += "f";
+    for k in 1..=300 {
+        comb += &format!(" {k}");
+    }
+    let e = parse_obj(&comb).unwrap_err().to_string();
+    assert!(e.contains("concave face of 300 corners"), "{e}");
+    // Convex polygons keep the fan (and its triangle order).
+    let quad = parse_obj("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
+    assert_eq!(quad.indices, vec![0, 1, 2, 0, 2, 3]);
+}
+
+/// An ASCII PLY of three vertices with `vertex` properties `props` and one face given by
+/// `body` lines after the vertices.
+fn ascii_ply(props: &str, index_type: &str, vertices: &str, faces: &str) -> Vec<u8> {
+    format!(
+        "ply\nformat ascii 1.0\nelement vertex 3\n{props}element face 1\n\
+         property list uchar {index_type} vertex_indices\nend_header\n{vertices}{faces}"
+    )
+    .into_bytes()
+}
+
+const XYZ: &str = "property float x\nproperty float y\nproperty float z\n";
+
+#[test]
+fn ply_float_index_lists_must_hold_integers() {
+    let vertices = "0 0 0\n1 0 0\n0 1 0\n";
+    let good = parse_ply(&ascii_ply(XYZ, "float", vertices, "3 0 1 2\n")).unwrap();
+    assert_eq!(good.indices, vec![0, 1, 2]);
+    for face in ["3 nan 1 2\n", "3 0.5 1 2\n", "3 0 1 inf\n"] {
+        let e = parse_ply(&ascii_ply(XYZ, "float", vertices, face)).unwrap_err();
+        assert!(e.to_string().contains("index"), "{face:?}: {e}");
+    }
+    // Binary: a NaN float index.
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n".to_vec();
+    bytes.extend_from_slice(XYZ.as_bytes());
+    bytes.extend_from_slice(
+        b"element face 1\nproperty list uchar float vertex_indices\nend_header\n",
+    );
+    for v in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]] {
+        v.iter()
+            .for_each(|c| bytes.extend_from_slice(&c.to_le_bytes()));
+    }
+    bytes.push(3);
+    for i in [f32::NAN, 1.0, 2.0] {
+        bytes.extend_from_slice(&i.to_le_bytes());
+    }
+    let e = parse_ply(&bytes).unwrap_err();
+    assert!(e.to_string().contains("index"), "{e}");
+}
+
+#[test]
+fn ply_ascii_lines_hold_one_element_each() {
+    // One extra value on the first vertex line would shift every value after it.
+    let extra = ascii_ply(XYZ, "int", "0 0 0 7\n1 0 0\n0 1 0\n", "3 0 1 2\n");
+    let e = parse_ply(&extra).unwrap_err().to_string();
+    assert!(e.contains("line 10"), "{e}");
+    // One missing value borrows from the next line.
+    let short = ascii_ply(XYZ, "int", "0 0\n1 0 0\n0 1 0\n", "3 0 1 2\n");
+    assert!(parse_ply(&short).is_err());
+    // Trailing spaces, CRLF and blank lines at the end stay fine.
+    let fine = ascii_ply(XYZ, "int", "0 0 0 \r\n1 0 0\r\n0 1 0\n", "3 0 1 2\n\n");
+    assert_eq!(parse_ply(&fine).unwrap().triangle_count(), 1);
+}
+
+#[test]
+fn ply_properties_declared_twice_are_refused() {
+    let props = "property float x\nproperty float x\nproperty float y\n";
+    let e = parse_ply(&ascii_ply(
+        props,
+        "int",
+        "0 0 0\n1 0 0\n0 1 0\n",
+        "3 0 1 2\n",
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("`x`") && e.contains("twice"), "{e}");
+}

@@ -24,7 +24,7 @@ pub use error::{MeshError, MeshResult};
 pub use gltf_import::{
     GltfImport, GltfPrimitive, GltfSkinInfo, load_gltf, load_gltf_primitives, load_gltf_slice,
 };
-pub use obj::{load_obj, parse_obj, write_obj, write_obj_groups};
+pub use obj::{MAX_CONCAVE_CORNERS, load_obj, parse_obj, write_obj, write_obj_groups};
 pub use ply::{load_ply, parse_ply};
 pub use weld::{WeldMap, weld_positions};
 

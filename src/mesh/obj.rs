@@ -39,7 +39,9 @@ pub fn load_obj(path: &Path) -> MeshResult<IndexedMesh> {
 /// Parses OBJ text into an indexed triangle mesh.
 ///
 /// Faces may use `v`, `v/vt`, `v//vn` or `v/vt/vn` corners, with 1-based or negative
-/// (relative) indices; polygons are fan-triangulated. When no face corner refers to a `vt` or
+/// (relative) indices; lines may end in `\n`, `\r\n` or `\r`, and a UTF-8 byte order mark
+/// is skipped. Convex polygons are fans from their first corner; concave ones are ear-clipped
+/// in their plane (up to [`MAX_CONCAVE_CORNERS`] corners). When no face corner refers to a `vt` or
 /// `vn`, vertex `i` of the mesh is exactly the `i`-th `v` line, unreferenced ones included.
 /// Otherwise the mesh has one vertex per distinct corner combination, in order of first use.
 /// If only some corners have a texture coordinate the others get `(0, 0)`; if only some have a
@@ -49,7 +51,8 @@ pub fn load_obj(path: &Path) -> MeshResult<IndexedMesh> {
 ///
 /// # Errors
 /// [`MeshError::Parse`] naming the line of a malformed statement, a non-finite number, a face
-/// with fewer than three corners, or an index that is zero or refers to no vertex.
+/// with fewer than three corners, a concave face of more than [`MAX_CONCAVE_CORNERS`]
+/// corners, or an index that is zero or refers to no vertex.
 ///
 /// # Example
 /// ```
@@ -64,12 +67,11 @@ pub fn parse_obj(text: &str) -> MeshResult<IndexedMesh> {
     let mut positions: Vec<Vec3> = Vec::new();
     let mut texcoords: Vec<Vec2> = Vec::new();
     let mut normals: Vec<Vec3> = Vec::new();
-    let mut triangles: Vec<[Corner; 3]> = Vec::new();
-    // The line of each triangle, so that a range error found at the end can name it.
-    let mut triangle_lines: Vec<usize> = Vec::new();
-    let mut face: Vec<Corner> = Vec::new();
+    // Every face's corners, and its line, so that a range error found at the end can name it.
+    let mut corners: Vec<Corner> = Vec::new();
+    let mut faces: Vec<(Range<usize>, usize)> = Vec::new();
 
-    for (line_index, raw) in text.lines().enumerate() {
+    for (line_index, raw) in lines(text).enumerate() {
         let line_number = line_index + 1;
         let err = |message: String| MeshError::parse("OBJ", format!("line {line_number}"), message);
         let content = raw.split_once('#').map_or(raw, |(before, _)| before);
@@ -88,31 +90,28 @@ pub fn parse_obj(text: &str) -> MeshResult<IndexedMesh> {
                 parse_floats::<3>(&mut tokens, 3, "vn").map_err(err)?,
             )),
             "f" => {
-                face.clear();
+                let start = corners.len();
                 for token in tokens {
-                    face.push(
+                    corners.push(
                         parse_corner(token, [positions.len(), texcoords.len(), normals.len()])
                             .map_err(err)?,
                     );
                 }
-                if face.len() < 3 {
+                if corners.len() - start < 3 {
                     return Err(err(format!(
                         "a face needs at least 3 vertices, found {}",
-                        face.len()
+                        corners.len() - start
                     )));
                 }
-                for i in 1..face.len() - 1 {
-                    triangles.push([face[0], face[i], face[i + 1]]);
-                    triangle_lines.push(line_number);
-                }
+                faces.push((start..corners.len(), line_number));
             }
             _ => {}
         }
     }
 
     // Positive indices may refer forward, so ranges are checked once every list is complete.
-    for (tri, &line) in triangles.iter().zip(&triangle_lines) {
-        for c in tri {
+    for (range, line) in &faces {
+        for c in &corners[range.clone()] {
             let checks = [
                 ("v", c.v, positions.len()),
                 ("vt", c.vt, texcoords.len()),
@@ -131,6 +130,14 @@ pub fn parse_obj(text: &str) -> MeshResult<IndexedMesh> {
                 }
             }
         }
+    }
+    let mut triangles: Vec<[Corner; 3]> = Vec::with_capacity(corners.len());
+    for (range, line) in &faces {
+        let face = &corners[range.clone()];
+        let points: Vec<Vec3> = face.iter().map(|c| positions[c.v as usize]).collect();
+        let order = triangulate(&points)
+            .map_err(|message| MeshError::parse("OBJ", format!("line {line}"), message))?;
+        triangles.extend(order.iter().map(|t| t.map(|k| face[k])));
     }
 
     let any_vt = triangles.iter().flatten().any(|c| c.vt != NONE);
@@ -172,6 +179,110 @@ pub fn parse_obj(text: &str) -> MeshResult<IndexedMesh> {
         mesh.indices.push(vertex);
     }
     Ok(mesh)
+}
+
+/// The lines of `text`, ended by `\n`, `\r\n` or a lone `\r` (old Mac files), after a
+/// UTF-8 byte order mark if it starts with one.
+fn lines(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = text.strip_prefix('\u{feff}').unwrap_or(text);
+    std::iter::from_fn(move || {
+        if rest.is_empty() {
+            return None;
+        }
+        let (line, after) = match rest.find(['\r', '\n']) {
+            Some(i) if rest[i..].starts_with("\r\n") => (&rest[..i], &rest[i + 2..]),
+            Some(i) => (&rest[..i], &rest[i + 1..]),
+            None => (rest, ""),
+        };
+        rest = after;
+        Some(line)
+    })
+}
+
+/// The most corners of a concave face that are triangulated (ear clipping costs up to the
+/// cube of the corners, so a bound keeps reading linear in the file); convex faces of any
+/// size are fans.
+pub const MAX_CONCAVE_CORNERS: usize = 256;
+
+/// Triangles of one polygon face, as corner positions in `points`, in the face's winding.
+/// A convex (or flat-degenerate) face is a fan from its first corner; a concave one is
+/// ear-clipped in its own plane, so that no triangle lies outside its outline.
+///
+/// # Errors
+/// A concave face of more than [`MAX_CONCAVE_CORNERS`] corners.
+fn triangulate(points: &[Vec3]) -> Result<Vec<[usize; 3]>, String> {
+    let n = points.len();
+    let fan = || (1..n - 1).map(|i| [0, i, i + 1]).collect();
+    if n == 3 {
+        return Ok(fan());
+    }
+    // Newell's normal, and the face projected on the plane across its largest component.
+    let mut normal = Vec3::ZERO;
+    for (i, a) in points.iter().enumerate() {
+        let b = points[(i + 1) % n];
+        normal += Vec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    let axis = normal.abs().max_position();
+    if !normal.is_finite() || normal[axis] == 0.0 {
+        return Ok(fan());
+    }
+    let (u, v) = match axis {
+        0 => (1, 2),
+        1 => (2, 0),
+        _ => (0, 1),
+    };
+    let sign = normal[axis].signum();
+    let flat: Vec<Vec2> = points
+        .iter()
+        .map(|p| Vec2::new(p[u], p[v]) * Vec2::new(1.0, sign))
+        .collect();
+    // Counter-clockwise now: a corner is convex where its turn is positive.
+    let turn = |a: usize, b: usize, c: usize| (flat[b] - flat[a]).perp_dot(flat[c] - flat[b]);
+    if (0..n).all(|i| turn((i + n - 1) % n, i, (i + 1) % n) >= 0.0) {
+        return Ok(fan());
+    }
+    if n > MAX_CONCAVE_CORNERS {
+        return Err(format!(
+            "a concave face of {n} corners; at most {MAX_CONCAVE_CORNERS} are triangulated"
+        ));
+    }
+    let inside = |p: Vec2, [a, b, c]: [usize; 3]| {
+        let (a, b, c) = (flat[a], flat[b], flat[c]);
+        (b - a).perp_dot(p - a) > 0.0
+            && (c - b).perp_dot(p - b) > 0.0
+            && (a - c).perp_dot(p - c) > 0.0
+    };
+    let mut ring: Vec<usize> = (0..n).collect();
+    let mut out = Vec::with_capacity(n - 2);
+    let mut i = 0;
+    let mut failures = 0;
+    while ring.len() > 3 {
+        let m = ring.len();
+        let tri = [ring[(i + m - 1) % m], ring[i % m], ring[(i + 1) % m]];
+        let ear = turn(tri[0], tri[1], tri[2]) > 0.0
+            && ring
+                .iter()
+                .all(|&k| tri.contains(&k) || !inside(flat[k], tri));
+        // A ring with no ear left (a self-intersecting face) clips anyway, so the face keeps
+        // its corners - 2 triangles.
+        if ear || failures >= m {
+            out.push(tri);
+            let removed = i % m;
+            ring.remove(removed);
+            failures = 0;
+            // Next, the corner before the clipped one: its angle changed.
+            i = if removed == 0 { m - 2 } else { removed - 1 };
+        } else {
+            failures += 1;
+            i = (i + 1) % m;
+        }
+    }
+    out.push([ring[0], ring[1], ring[2]]);
+    Ok(out)
 }
 
 /// Parses up to `N` floats (at least `required`; missing optional ones are 0). Extra numbers,

@@ -24,7 +24,7 @@ pub fn load_ply(path: &Path) -> MeshResult<IndexedMesh> {
 
 /// Parses a PLY file held in memory.
 ///
-/// Faces are fan-triangulated. Triangle strips are split at `-1` restart markers and turned
+/// ASCII data holds one element instance per line. Faces are fan-triangulated. Triangle strips are split at `-1` restart markers and turned
 /// into triangles of alternating winding, as strips are drawn; triangles of a strip that
 /// repeat a vertex are skipped (strips use them to turn corners). Normals and texture
 /// coordinates are kept when all their components are present.
@@ -33,8 +33,10 @@ pub fn load_ply(path: &Path) -> MeshResult<IndexedMesh> {
 ///
 /// # Errors
 /// [`MeshError::Parse`] for a malformed header (naming the header line), data that ends early
-/// or is not a number (naming the element, and the line or byte), a vertex element without
-/// `x`, `y` and `z`, or a face index that is negative or refers to no vertex.
+/// or is not a number (naming the element, and the line or byte), an ASCII line with more
+/// values than its element's properties, a property declared twice, a vertex element without
+/// `x`, `y` and `z`, or a face index that is not a whole number, is negative or refers to no
+/// vertex.
 ///
 /// # Example
 /// ```
@@ -286,6 +288,15 @@ fn parse_header(bytes: &[u8]) -> MeshResult<Header> {
                         format!("list `{name}`: the count type must be an integer type"),
                     ));
                 }
+                if element.properties.iter().any(|p| p.name == name) {
+                    return Err(header_error(
+                        line_number,
+                        format!(
+                            "element `{}`: property `{name}` declared twice",
+                            element.name
+                        ),
+                    ));
+                }
                 let role = role_of(&element.name, name, &kind);
                 element.properties.push(Property {
                     name: name.to_owned(),
@@ -376,6 +387,26 @@ impl Cursor<'_> {
             Self::Ascii { line, .. } => format!("line {line}"),
             Self::Binary { pos, offset, .. } => format!("byte {}", offset + pos),
         }
+    }
+
+    /// Ends one element instance: in ASCII, the rest of its line must be blank (one instance
+    /// per line, so that a value too many or too few cannot shift every value after it).
+    fn end_instance(&mut self) -> Result<(), String> {
+        let Self::Ascii { data, pos, line } = self else {
+            return Ok(());
+        };
+        while let Some(&b) = data.get(*pos) {
+            match b {
+                b'\n' => {
+                    *pos += 1;
+                    *line += 1;
+                    return Ok(());
+                }
+                b if b.is_ascii_whitespace() => *pos += 1,
+                _ => return Err("more values on its line than its properties".into()),
+            }
+        }
+        Ok(())
     }
 
     /// Reads one value of type `ty`; `Err` says what went wrong, without the location.
@@ -526,6 +557,14 @@ fn read_element(element: &Element, cursor: &mut Cursor<'_>, out: &mut Collected)
                     for _ in 0..len as u64 {
                         let value = cursor.read(item).map_err(|m| err(cursor, m))?;
                         if property.role != Role::Ignored {
+                            // Float-typed lists must still hold whole indices (NaN would
+                            // become vertex 0).
+                            if !value.is_finite() || value.fract() != 0.0 {
+                                return Err(err(
+                                    cursor,
+                                    format!("vertex index {value} is not an integer"),
+                                ));
+                            }
                             list.push(value as i64);
                         }
                     }
@@ -537,6 +576,13 @@ fn read_element(element: &Element, cursor: &mut Cursor<'_>, out: &mut Collected)
                 }
             }
         }
+        cursor.end_instance().map_err(|message| {
+            MeshError::parse(
+                "PLY",
+                cursor.location(),
+                format!("element `{}` {instance}: {message}", element.name),
+            )
+        })?;
         if is_vertex {
             out.positions.push(Vec3::from(p));
             if let Some(normals) = &mut out.normals {

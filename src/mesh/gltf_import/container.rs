@@ -31,14 +31,19 @@ pub(super) fn split_glb(bytes: &[u8]) -> MeshResult<(&[u8], Option<&[u8]>)> {
             "unsupported GLB version {version} (expected 2)"
         )));
     }
+    // Bytes past the declared length are not the file's: refuse them before reading chunks.
+    if declared < bytes.len() {
+        return Err(length_mismatch(declared, bytes.len()));
+    }
     // Walk the chunks that are really there, so that a file cut short is reported as the
     // truncated chunk it is, and a wrong total length after that.
-    let end = bytes.len().min(declared.max(12));
+    let end = bytes.len();
     let (mut json, mut bin) = (None, None);
     let mut pos = 12;
     let mut chunk = 0;
     while pos < end {
-        let (Some(length), Some(kind)) = (u32_at(pos), bytes.get(pos + 4..pos + 8)) else {
+        let header = bytes.get(pos..end).filter(|rest| rest.len() >= 8);
+        let (Some(length), Some(kind)) = (header.and(u32_at(pos)), header.map(|h| &h[4..8])) else {
             return Err(gltf_error(format!(
                 "truncated chunk header: chunk {chunk} at byte {pos} needs 8 bytes, {} remain",
                 end - pos
@@ -77,13 +82,17 @@ pub(super) fn split_glb(bytes: &[u8]) -> MeshResult<(&[u8], Option<&[u8]>)> {
         chunk += 1;
     }
     if declared != bytes.len() {
-        return Err(gltf_error(format!(
-            "GLB length mismatch: the header declares {declared} bytes, the file has {}",
-            bytes.len()
-        )));
+        return Err(length_mismatch(declared, bytes.len()));
     }
     let json = json.ok_or_else(|| gltf_error("GLB has no JSON chunk"))?;
     Ok((json, bin))
+}
+
+/// A GLB whose header declares another length than the file has.
+fn length_mismatch(declared: usize, actual: usize) -> MeshError {
+    gltf_error(format!(
+        "GLB length mismatch: the header declares {declared} bytes, the file has {actual}"
+    ))
 }
 
 /// Parses and validates the JSON, reporting every problem with its pointer.
