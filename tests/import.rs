@@ -1227,3 +1227,58 @@ fn ply_properties_declared_twice_are_refused() {
     .to_string();
     assert!(e.contains("`x`") && e.contains("twice"), "{e}");
 }
+
+/// The square of [`square_glb`] as a `.gltf` whose buffer is the external file `uri`, and
+/// that buffer's bytes.
+fn square_gltf(uri: &str) -> (String, Vec<u8>) {
+    let glb = square_glb(&[0, 1, 2, 2, 1, 3], 4, r#"{"mesh":0}"#);
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json = std::str::from_utf8(&glb[20..20 + json_len]).unwrap().trim_end();
+    let bin = glb[20 + json_len + 8..].to_vec();
+    let json = json.replace(
+        r#""buffers":[{"byteLength""#,
+        &format!(r#""buffers":[{{"uri":"{uri}","byteLength""#),
+    );
+    (json, bin)
+}
+
+#[test]
+fn external_buffers_stay_inside_the_gltf_folder() {
+    let dir = scratch_dir("confined");
+    let folder = dir.join("asset");
+    std::fs::create_dir_all(folder.join("sub")).unwrap();
+    let (_, bin) = square_gltf("");
+    // A secret next to the folder, a buffer inside it with more bytes than it declares.
+    std::fs::write(dir.join("secret.bin"), &bin).unwrap();
+    let mut padded = bin.clone();
+    padded.extend_from_slice(&[0xAB; 64]);
+    std::fs::write(folder.join("sub/square.bin"), &padded).unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(dir.join("secret.bin"), folder.join("link.bin")).ok();
+
+    let load = |uri: &str| {
+        let (json, _) = square_gltf(uri);
+        let path = folder.join("square.gltf");
+        std::fs::write(&path, json).unwrap();
+        no_panic(uri, || load_gltf(&path))
+    };
+    let mesh = load("sub/square.bin").expect("a buffer inside the folder loads");
+    assert_eq!(mesh.mesh.triangle_count(), 2);
+    assert!(load("./sub/square.bin").is_ok());
+    let refused = [
+        ("../secret.bin", "plain relative path"),
+        ("sub/../../secret.bin", "plain relative path"),
+        ("/etc/passwd", "plain relative path"),
+        ("/dev/zero", "plain relative path"),
+        ("%2Fdev%2Fzero", "plain relative path"),
+        ("..%2Fsecret.bin", "plain relative path"),
+        ("sub", "not a regular file"),
+        #[cfg(unix)]
+        ("link.bin", "outside the glTF's folder"),
+    ];
+    for (uri, expected) in refused {
+        let e = load(uri).expect_err(uri).to_string();
+        assert!(e.contains(expected), "{uri}: {e}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -226,7 +226,7 @@ pub(super) fn load_buffers<'a>(
                 Cow::Owned(data.0)
             }
             gltf::buffer::Source::Uri(uri) => Cow::Owned(
-                read_external(uri, base_dir)
+                read_external(uri, base_dir, buffer.length())
                     .map_err(|message| gltf_error(format!("buffers[{i}].uri: {message}")))?,
             ),
         };
@@ -242,17 +242,59 @@ pub(super) fn load_buffers<'a>(
     Ok(buffers)
 }
 
-/// Reads a buffer stored in a file next to the glTF.
-fn read_external(uri: &str, base_dir: Option<&Path>) -> Result<Vec<u8>, String> {
+/// Reads the first `length` bytes of a buffer stored in a file in the glTF's own folder (or
+/// below it). The URI must be relative, without `..`, and name a regular file whose real
+/// path (symbolic links followed) stays inside that folder: a file naming `/etc/passwd`,
+/// `../secret` or `/dev/zero` is refused before anything is read.
+fn read_external(uri: &str, base_dir: Option<&Path>, length: usize) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    use std::path::Component;
     if uri.contains(':') {
         return Err(format!("unsupported URI scheme in `{uri}`"));
     }
     let relative = percent_decode(uri).ok_or_else(|| format!("malformed URI `{uri}`"))?;
+    let relative_path = Path::new(&relative);
+    if relative.starts_with(['/', '\\'])
+        || relative.contains('\\')
+        || relative_path
+            .components()
+            .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
+    {
+        return Err(format!(
+            "`{relative}` is not a plain relative path (no absolute paths, `..` or \
+             backslashes): external buffers must lie in the glTF's own folder"
+        ));
+    }
     let base = base_dir.ok_or_else(|| {
         format!("external file `{relative}` cannot be resolved without a base directory")
     })?;
-    let path = base.join(&relative);
-    std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+    let base = if base.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        base
+    };
+    let path = base.join(relative_path);
+    let cannot = |e: std::io::Error| format!("cannot read {}: {e}", path.display());
+    let (real_base, real) = (
+        base.canonicalize().map_err(cannot)?,
+        path.canonicalize().map_err(cannot)?,
+    );
+    if !real.starts_with(&real_base) {
+        return Err(format!(
+            "`{relative}` leads outside the glTF's folder (to {})",
+            real.display()
+        ));
+    }
+    let file = std::fs::File::open(&real).map_err(cannot)?;
+    if !file.metadata().map_err(cannot)?.is_file() {
+        return Err(format!("`{relative}` is not a regular file"));
+    }
+    // Never more than the buffer declares, whatever the file holds.
+    let mut data = Vec::new();
+    file.take(length as u64)
+        .read_to_end(&mut data)
+        .map_err(cannot)?;
+    Ok(data)
 }
 
 fn percent_decode(uri: &str) -> Option<String> {
