@@ -1233,7 +1233,9 @@ fn ply_properties_declared_twice_are_refused() {
 fn square_gltf(uri: &str) -> (String, Vec<u8>) {
     let glb = square_glb(&[0, 1, 2, 2, 1, 3], 4, r#"{"mesh":0}"#);
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let json = std::str::from_utf8(&glb[20..20 + json_len]).unwrap().trim_end();
+    let json = std::str::from_utf8(&glb[20..20 + json_len])
+        .unwrap()
+        .trim_end();
     let bin = glb[20 + json_len + 8..].to_vec();
     let json = json.replace(
         r#""buffers":[{"byteLength""#,

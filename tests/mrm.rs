@@ -659,3 +659,111 @@ fn the_committed_mannequin_is_baked_from_the_committed_glb() {
         "10 rigid and 9 deformable regions"
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// Crafted files: each of these was read, or took minutes, before its check.
+
+/// A container of `sections` (tag, bytes), as the format lays it out.
+fn container(version: u32, sections: &[(&[u8; 4], Vec<u8>)]) -> Vec<u8> {
+    let table_end = 16 + 24 * sections.len() + 4;
+    let mut out = b"ASLODMRM".to_vec();
+    out.extend_from_slice(&version.to_le_bytes());
+    out.extend_from_slice(&(sections.len() as u32).to_le_bytes());
+    let mut offset = table_end as u64;
+    for (tag, bytes) in sections {
+        out.extend_from_slice(*tag);
+        out.extend_from_slice(&crc32(bytes).to_le_bytes());
+        out.extend_from_slice(&offset.to_le_bytes());
+        out.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
+        offset += bytes.len() as u64;
+    }
+    let crc = crc32(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    for (_, bytes) in sections {
+        out.extend_from_slice(bytes);
+    }
+    out
+}
+
+/// `good` with the four bytes at `at` in the first section tagged `tag` (in any container)
+/// set to `value`, every checksum made to match.
+fn with_f32(good: &[u8], tag: &[u8; 4], at: usize, value: f32) -> Vec<u8> {
+    let mut bytes = good.to_vec();
+    let starts = containers(&bytes);
+    let (_, data, _) = starts
+        .iter()
+        .flat_map(|&s| table(&bytes, s))
+        .find(|&(e, _, _)| &bytes[e..e + 4] == tag)
+        .expect("the section");
+    bytes[data + at..data + at + 4].copy_from_slice(&value.to_le_bytes());
+    reseal(&mut bytes, &starts);
+    bytes
+}
+
+#[test]
+fn non_finite_uvs_and_weights_are_refused() {
+    let good = mrm::write_progressive(&build(&small(), false));
+    for (tag, at, value, expected) in [
+        (b"UV0 ", 4, f32::NAN, "not finite"),
+        (b"UV0 ", 0, f32::INFINITY, "not finite"),
+        (b"WGT ", 8, f32::NAN, "weight"),
+        (b"WGT ", 0, -0.5, "weight"),
+    ] {
+        let e = mrm::read_progressive(&with_f32(&good, tag, at, value)).unwrap_err();
+        let name = String::from_utf8_lossy(tag);
+        assert!(e.to_string().contains(expected), "{name} {value}: {e}");
+        assert!(e.to_string().contains(name.trim()), "{name}: {e}");
+    }
+}
+
+#[test]
+fn region_boxes_and_bounds_that_enclose_nothing_are_refused() {
+    let good = mrm::write(&small_assets());
+    // The first box's first half extent, negative.
+    let e = mrm::read(&with_f32(&good, b"OBBS", 48, -1.0)).unwrap_err();
+    assert!(e.to_string().contains("negative extent"), "{e}");
+    // The first region's bounds: minimum x above the maximum.
+    let e = mrm::read(&with_f32(&good, b"RGN ", 32, 1e6)).unwrap_err();
+    assert!(e.to_string().contains("minimum is above"), "{e}");
+}
+
+#[test]
+fn many_keys_are_checked_for_repeats_in_linear_time() {
+    let good = mrm::write(&small_assets());
+    let version = u32::from_le_bytes(good[8..12].try_into().unwrap());
+    let sections: Vec<([u8; 4], Vec<u8>)> = table(&good, 0)
+        .into_iter()
+        .map(|(e, data, len)| {
+            (
+                good[e..e + 4].try_into().unwrap(),
+                good[data..data + len].to_vec(),
+            )
+        })
+        .collect();
+    let count = 150_000u32;
+    let mut keys = (count + 1).to_le_bytes().to_vec();
+    for k in (0..count).chain([0]) {
+        let key = format!("Mesh{k}/Primitive0");
+        keys.extend_from_slice(&(key.len() as u32).to_le_bytes());
+        keys.extend_from_slice(key.as_bytes());
+        keys.extend_from_slice(&0u64.to_le_bytes());
+    }
+    let crafted: Vec<(&[u8; 4], Vec<u8>)> = sections
+        .iter()
+        .map(|(tag, bytes)| {
+            (
+                tag,
+                if tag == b"KEYS" {
+                    keys.clone()
+                } else {
+                    bytes.clone()
+                },
+            )
+        })
+        .collect();
+    let start = std::time::Instant::now();
+    let e = mrm::read(&container(version, &crafted)).unwrap_err();
+    assert!(e.to_string().contains("repeated"), "{e}");
+    // Quadratic, this took minutes; linear, milliseconds.
+    assert!(start.elapsed().as_secs() < 20, "{:?}", start.elapsed());
+}

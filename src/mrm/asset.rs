@@ -227,10 +227,11 @@ pub(super) fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
     let mut r = Reader::new(section(&sections, b"KEYS")?);
     let count = r.u32()? as usize;
     let mut keys: Vec<(String, u64)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
     for _ in 0..count {
         let at = (r.offset() - r.start()) as usize;
         let key = r.string()?;
-        if key.is_empty() || keys.iter().any(|(k, _)| *k == key) {
+        if key.is_empty() || !seen.insert(key.clone()) {
             return Err(r.invalid(at, "a key is empty or repeated"));
         }
         keys.push((key, r.u64()?));
@@ -400,6 +401,11 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
     if let Some(k) = obbs.iter().position(|o| !finite(o)) {
         return Err(ro.invalid(OBB_BYTES * k, "a box is not finite"));
     }
+    // Zero extents are a flat region's (or one whose triangles meet at a point, which real
+    // files have); a negative one bounds nothing.
+    if let Some(k) = obbs.iter().position(|o| o.half_extents.min_element() < 0.0) {
+        return Err(ro.invalid(OBB_BYTES * k + 48, "a box has a negative extent"));
+    }
 
     let rgns = section(&sections, b"RGNS")?;
     let mut rr = Reader::new(rgns);
@@ -503,6 +509,9 @@ fn read_region(
     }
     if !(lo.is_finite() && hi.is_finite()) {
         return Err(r.invalid(32, "the bounds are not finite"));
+    }
+    if lo.cmpgt(hi).any() {
+        return Err(r.invalid(32, "the bounds' minimum is above their maximum"));
     }
     let (global, rg) =
         Reader::whole::<4, _>(section(&sections, b"GLOB")?, local, u32::from_le_bytes)?;

@@ -338,9 +338,15 @@ pub(super) fn read_vertices(
         .then(|| read_vec3(b"NRM "))
         .transpose()?;
     let uvs = (attributes & UVS != 0)
-        .then(|| Reader::whole::<8, _>(section(b"UV0 ")?, n, |b| Vec2::from(f32s::<2>(&b))))
-        .transpose()?
-        .map(|(v, _)| v);
+        .then(|| {
+            let (v, r) =
+                Reader::whole::<8, _>(section(b"UV0 ")?, n, |b| Vec2::from(f32s::<2>(&b)))?;
+            match v.iter().position(|t| !t.is_finite()) {
+                Some(k) => Err(r.invalid(8 * k, "a value is not finite")),
+                None => Ok(v),
+            }
+        })
+        .transpose()?;
     let joints = (attributes & JOINTS != 0)
         .then(|| {
             Reader::whole::<8, _>(section(b"JNT ")?, n, |b| {
@@ -350,9 +356,17 @@ pub(super) fn read_vertices(
         .transpose()?
         .map(|(v, _)| v);
     let weights = (attributes & WEIGHTS != 0)
-        .then(|| Reader::whole::<16, _>(section(b"WGT ")?, n, |b| f32s::<4>(&b)))
-        .transpose()?
-        .map(|(v, _)| v);
+        .then(|| {
+            let (v, r) = Reader::whole::<16, _>(section(b"WGT ")?, n, |b| f32s::<4>(&b))?;
+            match v
+                .iter()
+                .position(|w| w.iter().any(|x| !(x.is_finite() && *x >= 0.0)))
+            {
+                Some(k) => Err(r.invalid(16 * k, "a weight is negative or not finite")),
+                None => Ok(v),
+            }
+        })
+        .transpose()?;
     let tangents = (attributes & TANGENTS != 0)
         .then(|| {
             let (v, r) =
