@@ -79,7 +79,41 @@ enum Command {
     },
 }
 
+/// Writes the library's log records (importer warnings, say) to standard error, at the level
+/// `ASLOD_LOG` names (`error`, `warn`, `info`, `debug` or `trace`; `warn` by default).
+struct StderrLog;
+
+impl log::Log for StderrLog {
+    fn enabled(&self, metadata: &log::Metadata<'_>) -> bool {
+        metadata.level() <= log::max_level()
+    }
+
+    fn log(&self, record: &log::Record<'_>) {
+        if self.enabled(record.metadata()) {
+            eprintln!(
+                "aslod: {}: {}",
+                record.level().as_str().to_lowercase(),
+                record.args()
+            );
+        }
+    }
+
+    fn flush(&self) {}
+}
+
+fn install_logger() {
+    static LOGGER: StderrLog = StderrLog;
+    let level = std::env::var("ASLOD_LOG")
+        .ok()
+        .and_then(|l| l.parse::<log::LevelFilter>().ok())
+        .unwrap_or(log::LevelFilter::Warn);
+    if log::set_logger(&LOGGER).is_ok() {
+        log::set_max_level(level);
+    }
+}
+
 fn main() -> ExitCode {
+    install_logger();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Extract {
