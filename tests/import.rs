@@ -2,8 +2,8 @@
 //! glTF-Validator's malformed files. Also PLY and OBJ round trips with files written here.
 
 use bevy_aslod::mesh::{
-    IndexedMesh, MeshError, load_gltf, load_gltf_slice, load_obj, load_ply, parse_obj, parse_ply,
-    write_obj, write_obj_groups,
+    IndexedMesh, LoadLimits, MeshError, load_gltf, load_gltf_slice, load_gltf_slice_with_limits,
+    load_obj, load_ply, parse_obj, parse_ply, write_obj, write_obj_groups,
 };
 use glam::{Vec2, Vec3};
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -1283,4 +1283,71 @@ fn external_buffers_stay_inside_the_gltf_folder() {
         assert!(e.contains(expected), "{uri}: {e}");
     }
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A glTF of a few hundred bytes: a mesh whose POSITION accessor has no buffer view (zeros
+/// of `count` elements), shown by `nodes` nodes, skinned with `joints` joints.
+fn zero_filled_gltf(count: usize, nodes: usize, joints: usize) -> Vec<u8> {
+    let node_list: Vec<String> = (0..nodes)
+        .map(|_| r#"{"mesh":0,"skin":0}"#.to_string())
+        .chain((0..joints).map(|_| "{}".to_string()))
+        .collect();
+    let joint_list: Vec<String> = (nodes..nodes + joints).map(|j| j.to_string()).collect();
+    let roots: Vec<String> = (0..nodes + joints).map(|j| j.to_string()).collect();
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[{}]}}],
+        "nodes":[{}],"skins":[{{"joints":[{}]}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "accessors":[{{"componentType":5126,"count":{count},"type":"VEC3","min":[0,0,0],"max":[0,0,0]}}]}}"#,
+        roots.join(","),
+        node_list.join(","),
+        joint_list.join(","),
+    )
+    .into_bytes()
+}
+
+#[test]
+fn load_limits_stop_a_small_file_before_it_allocates() {
+    let limit_of = |bytes: &[u8], limits: &LoadLimits| match no_panic("a zero-filled glTF", || {
+        load_gltf_slice_with_limits(bytes, None, limits)
+    }) {
+        Err(MeshError::LimitExceeded { limit, .. }) => limit,
+        other => panic!(
+            "expected a limit, got {:?}",
+            other.map(|i| i.mesh.vertex_count())
+        ),
+    };
+    // 999,999 vertices of 12 bytes per node: the second node passes 20 MB.
+    let file = zero_filled_gltf(999_999, 3, 2);
+    assert!(file.len() < 1_000);
+    let tight = LoadLimits {
+        decoded_bytes: 20_000_000,
+        ..LoadLimits::default()
+    };
+    assert_eq!(limit_of(&file, &tight), "decoded_bytes");
+    let few_vertices = LoadLimits {
+        vertices: 1_500_000,
+        ..LoadLimits::default()
+    };
+    assert_eq!(limit_of(&file, &few_vertices), "vertices");
+    let few_joints = LoadLimits {
+        joints: 1,
+        ..LoadLimits::default()
+    };
+    assert_eq!(limit_of(&file, &few_joints), "joints");
+    let small_files = LoadLimits {
+        file_bytes: 100,
+        ..LoadLimits::default()
+    };
+    assert_eq!(limit_of(&file, &small_files), "file_bytes");
+    // The error says which limit and how to raise it.
+    let e = load_gltf_slice_with_limits(&file, None, &tight)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("LoadLimits::decoded_bytes"), "{e}");
+    // Within the defaults, the limits pass it on to the importer's other checks.
+    assert!(!matches!(
+        load_gltf_slice_with_limits(&file, None, &LoadLimits::default()),
+        Err(MeshError::LimitExceeded { .. })
+    ));
 }

@@ -100,6 +100,20 @@ pub enum MeshError {
         /// The most there may be.
         limit: u64,
     },
+    /// A file asks for more than a [`LoadLimits`](super::LoadLimits) allows.
+    #[error(
+        "the file needs {value} for LoadLimits::{limit}, above its {max}; raise \
+         LoadLimits::{limit} if the file is trusted"
+    )]
+    LimitExceeded {
+        /// The limit's field name: `file_bytes`, `decoded_bytes`, `vertices`, `triangles`
+        /// or `joints`.
+        limit: &'static str,
+        /// What the file needs.
+        value: u64,
+        /// The limit.
+        max: u64,
+    },
     /// A glTF document is structurally invalid (unresolved references, bad GLB container,
     /// missing buffers, ...).
     #[error("invalid glTF: {message}")]

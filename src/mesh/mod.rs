@@ -11,6 +11,7 @@
 mod attributes;
 mod error;
 mod gltf_import;
+mod limits;
 mod obj;
 mod ply;
 mod tangents;
@@ -22,8 +23,11 @@ pub use attributes::{
 };
 pub use error::{MeshError, MeshResult};
 pub use gltf_import::{
-    GltfImport, GltfPrimitive, GltfSkinInfo, load_gltf, load_gltf_primitives, load_gltf_slice,
+    GltfImport, GltfPrimitive, GltfSkinInfo, load_gltf, load_gltf_primitives,
+    load_gltf_primitives_with_limits, load_gltf_slice, load_gltf_slice_with_limits,
+    load_gltf_with_limits,
 };
+pub use limits::LoadLimits;
 pub use obj::{MAX_CONCAVE_CORNERS, load_obj, parse_obj, write_obj, write_obj_groups};
 pub use ply::{load_ply, parse_ply};
 pub use weld::{WeldMap, weld_positions};
@@ -399,6 +403,19 @@ impl IndexedMesh {
     /// [`MeshError::UnsupportedFormat`] for other extensions, [`MeshError::Io`] when the file
     /// cannot be read, and any parse or validation error of the chosen importer.
     pub fn load(path: impl AsRef<Path>) -> MeshResult<(Self, ValidationReport)> {
+        Self::load_with_limits(path, &LoadLimits::default())
+    }
+
+    /// [`load`](Self::load) within `limits`: the file's size is checked before it is read,
+    /// a glTF's decoded data while it is decoded, and the mesh's vertices and triangles.
+    ///
+    /// # Errors
+    /// As [`load`](Self::load), and [`MeshError::LimitExceeded`] naming the limit a file
+    /// exceeds.
+    pub fn load_with_limits(
+        path: impl AsRef<Path>,
+        limits: &LoadLimits,
+    ) -> MeshResult<(Self, ValidationReport)> {
         let path = path.as_ref();
         let ext = path
             .extension()
@@ -406,11 +423,11 @@ impl IndexedMesh {
             .map(str::to_ascii_lowercase)
             .unwrap_or_default();
         let mut mesh = match ext.as_str() {
-            "obj" => load_obj(path)?,
-            "ply" => load_ply(path)?,
+            "obj" => parse_obj(&String::from_utf8_lossy(&limits.read_file(path)?))?,
+            "ply" => parse_ply(&limits.read_file(path)?)?,
             // The glTF importer validates already and keeps its own report.
             "gltf" | "glb" => {
-                let import = load_gltf(path)?;
+                let import = load_gltf_with_limits(path, limits)?;
                 return Ok((import.mesh, import.report));
             }
             _ => {
@@ -419,6 +436,7 @@ impl IndexedMesh {
                 });
             }
         };
+        limits.check_mesh(&mesh)?;
         let report = mesh.validate()?;
         Ok((mesh, report))
     }

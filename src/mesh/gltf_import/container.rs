@@ -1,6 +1,6 @@
 //! Reading the container: the GLB chunks, the validated JSON document and the buffers.
 
-use crate::mesh::{MeshError, MeshResult};
+use crate::mesh::{LoadLimits, MeshError, MeshResult};
 use gltf::Document;
 use gltf::json::validation::{Error as JsonError, Validate};
 use gltf::mesh::Semantic;
@@ -210,10 +210,12 @@ pub(super) fn load_buffers<'a>(
     document: &Document,
     bin: Option<&'a [u8]>,
     base_dir: Option<&Path>,
+    limits: &LoadLimits,
 ) -> MeshResult<Vec<Cow<'a, [u8]>>> {
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let i = buffer.index();
+        LoadLimits::check("file_bytes", buffer.length() as u64, limits.file_bytes)?;
         let data: Cow<'a, [u8]> = match buffer.source() {
             gltf::buffer::Source::Bin => Cow::Borrowed(bin.ok_or_else(|| {
                 gltf_error(format!(

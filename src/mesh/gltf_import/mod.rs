@@ -20,7 +20,9 @@ pub use flatten::GltfImport;
 use glam::Mat4;
 pub use scene::GltfSkinInfo;
 
-use super::{MeshError, MeshResult};
+#[cfg(doc)]
+use super::MeshError;
+use super::{LoadLimits, MeshResult};
 use accessors::Data;
 use container::{gltf_error, load_buffers, parse_document, split_glb};
 use flatten::Builder;
@@ -34,8 +36,17 @@ use std::path::Path;
 /// [`MeshError::Io`] when the file cannot be read, otherwise the errors of
 /// [`load_gltf_slice`].
 pub fn load_gltf(path: &Path) -> MeshResult<GltfImport> {
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    load_gltf_slice(&bytes, path.parent())
+    load_gltf_with_limits(path, &LoadLimits::default())
+}
+
+/// [`load_gltf`] within `limits` (the file's and each external buffer's size, the data
+/// decoded, the vertices, triangles and joints).
+///
+/// # Errors
+/// As [`load_gltf`], and [`MeshError::LimitExceeded`] naming the limit the file exceeds.
+pub fn load_gltf_with_limits(path: &Path, limits: &LoadLimits) -> MeshResult<GltfImport> {
+    let bytes = limits.read_file(path)?;
+    load_gltf_slice_with_limits(&bytes, path.parent(), limits)
 }
 
 /// Parses glTF JSON or a GLB container held in memory and flattens it into one mesh.
@@ -69,7 +80,21 @@ pub fn load_gltf(path: &Path) -> MeshResult<GltfImport> {
 ///
 /// [`IndexedMesh::validate`]: super::IndexedMesh::validate
 pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> MeshResult<GltfImport> {
-    let (document, data, skins) = open(bytes, base_dir)?;
+    load_gltf_slice_with_limits(bytes, base_dir, &LoadLimits::default())
+}
+
+/// [`load_gltf_slice`] within `limits`.
+///
+/// # Errors
+/// As [`load_gltf_slice`], and [`MeshError::LimitExceeded`] naming the limit the file
+/// exceeds.
+pub fn load_gltf_slice_with_limits(
+    bytes: &[u8],
+    base_dir: Option<&Path>,
+    limits: &LoadLimits,
+) -> MeshResult<GltfImport> {
+    LoadLimits::check("file_bytes", bytes.len() as u64, limits.file_bytes)?;
+    let (document, data, skins) = open(bytes, base_dir, limits)?;
     let instances = collect_instances(&document)?;
     let mut builder = Builder::new(&skins, &instances);
     for instance in &instances {
@@ -87,6 +112,7 @@ pub fn load_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> MeshResult<Gltf
 fn open<'a>(
     bytes: &'a [u8],
     base_dir: Option<&Path>,
+    limits: &LoadLimits,
 ) -> MeshResult<(gltf::Document, Data<'a>, Vec<GltfSkinInfo>)> {
     let (json, bin) = if bytes.starts_with(b"glTF") {
         split_glb(bytes)?
@@ -98,8 +124,8 @@ fn open<'a>(
     // Some exporters pad the JSON chunk with NULs instead of spaces; tolerate that.
     let end = json.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
     let document = parse_document(&json[..end])?;
-    let buffers = load_buffers(&document, bin, base_dir)?;
-    let data = Data { buffers };
+    let buffers = load_buffers(&document, bin, base_dir, limits)?;
+    let data = Data::new(buffers, *limits);
     let skins = document
         .skins()
         .map(|skin| read_skin(&data, &skin))
@@ -126,8 +152,20 @@ pub struct GltfPrimitive {
 /// # Errors
 /// As [`load_gltf`], naming the primitive for errors of its own.
 pub fn load_gltf_primitives(path: &Path) -> MeshResult<(Vec<GltfPrimitive>, Vec<GltfSkinInfo>)> {
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    let (document, data, skins) = open(&bytes, path.parent())?;
+    load_gltf_primitives_with_limits(path, &LoadLimits::default())
+}
+
+/// [`load_gltf_primitives`] within `limits`.
+///
+/// # Errors
+/// As [`load_gltf_primitives`], and [`MeshError::LimitExceeded`] naming the limit the file
+/// exceeds.
+pub fn load_gltf_primitives_with_limits(
+    path: &Path,
+    limits: &LoadLimits,
+) -> MeshResult<(Vec<GltfPrimitive>, Vec<GltfSkinInfo>)> {
+    let bytes = limits.read_file(path)?;
+    let (document, data, skins) = open(&bytes, path.parent(), limits)?;
     let instances = collect_instances(&document)?;
     let mut out = Vec::new();
     for mesh in document.meshes() {
