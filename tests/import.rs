@@ -1351,3 +1351,45 @@ fn load_limits_stop_a_small_file_before_it_allocates() {
         Err(MeshError::LimitExceeded { .. })
     ));
 }
+
+#[test]
+fn joint_maps_are_linear_in_joints_and_primitives() {
+    // One skin of 20,000 joints, one mesh of 60 primitives (the same triangle) on a skinned
+    // node. Mapped per primitive by a linear search, this took minutes.
+    let (joints, primitives) = (20_000, 60);
+    let bin: Vec<u8> = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+        .iter()
+        .flatten()
+        .flat_map(|c| c.to_le_bytes())
+        .chain([0u8; 12])
+        .collect();
+    let nodes: Vec<&str> = std::iter::once(r#"{"mesh":0,"skin":0}"#)
+        .chain(std::iter::repeat_n("{}", joints))
+        .collect();
+    let joint_list: Vec<String> = (1..=joints).map(|j| j.to_string()).collect();
+    let primitive = r#"{"attributes":{"POSITION":0,"JOINTS_0":1,"WEIGHTS_0":2}}"#;
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+        "nodes":[{}],"skins":[{{"joints":[{}]}}],
+        "meshes":[{{"primitives":[{}]}}],
+        "accessors":[
+          {{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+          {{"bufferView":1,"componentType":5121,"count":3,"type":"VEC4"}},
+          {{"bufferView":2,"componentType":5121,"normalized":true,"count":3,"type":"VEC4"}}],
+        "bufferViews":[{{"buffer":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":12}},
+          {{"buffer":0,"byteOffset":36,"byteLength":12}}],
+        "buffers":[{{"byteLength":{}}}]}}"#,
+        nodes.join(","),
+        joint_list.join(","),
+        vec![primitive; primitives].join(","),
+        bin.len()
+    );
+    let dir = scratch_dir("joints");
+    let path = dir.join("many_joints.glb");
+    std::fs::write(&path, glb(&json, &bin)).unwrap();
+    let start = std::time::Instant::now();
+    let (read, skins) = bevy_aslod::mesh::load_gltf_primitives(&path).unwrap();
+    assert_eq!((read.len(), skins[0].joints.len()), (primitives, joints));
+    assert!(start.elapsed().as_secs() < 20, "{:?}", start.elapsed());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -12,6 +12,8 @@ use glam::{Mat3, Vec2, Vec3, Vec4};
 use gltf::Primitive;
 use gltf::accessor::DataType;
 use gltf::mesh::{Mode, Semantic};
+use std::collections::HashMap;
+use std::rc::Rc;
 
 /// The result of [`load_gltf`]: the flattened mesh and what else the file held.
 ///
@@ -78,7 +80,7 @@ pub(super) struct Builder {
     dropped: std::collections::BTreeSet<String>,
     /// Per skin, the map from its joint indices to those of the primary skin (`None` when a
     /// joint node is missing there, which drops the joints).
-    joint_maps: Vec<Option<Vec<u16>>>,
+    joint_maps: Rc<JointMaps>,
     /// Per skin, its number of joints.
     joint_counts: Vec<usize>,
     joints_unmappable: bool,
@@ -86,22 +88,44 @@ pub(super) struct Builder {
     morph_target_primitives: usize,
 }
 
+/// Per skin, the map from its joint indices to those of the primary skin (`None` for every
+/// skin without a primary one, or with a joint node the primary lacks).
+pub(super) type JointMaps = Vec<Option<Vec<u16>>>;
+
+/// [`JointMaps`] onto skin `primary`: linear in the joints of all skins.
+pub(super) fn joint_maps(skins: &[GltfSkinInfo], primary: Option<usize>) -> JointMaps {
+    let index_of: HashMap<usize, usize> = primary
+        .and_then(|p| skins.get(p))
+        .map(|p| {
+            p.joints
+                .iter()
+                .enumerate()
+                .rev()
+                .map(|(j, &node)| (node, j))
+                .collect()
+        })
+        .unwrap_or_default();
+    skins
+        .iter()
+        .map(|skin| {
+            primary?;
+            skin.joints
+                .iter()
+                .map(|node| u16::try_from(*index_of.get(node)?).ok())
+                .collect()
+        })
+        .collect()
+}
+
 impl Builder {
     pub(super) fn new(skins: &[GltfSkinInfo], instances: &[Instance<'_>]) -> Self {
         let primary = instances.iter().filter_map(|i| i.skin).min();
-        let joint_maps = skins
-            .iter()
-            .map(|skin| {
-                let primary = &skins[primary?].joints;
-                skin.joints
-                    .iter()
-                    .map(|node| {
-                        let j = primary.iter().position(|p| p == node)?;
-                        u16::try_from(j).ok()
-                    })
-                    .collect()
-            })
-            .collect();
+        Self::with_joint_maps(skins, Rc::new(joint_maps(skins, primary)))
+    }
+
+    /// A builder whose primary skin's joint maps, [`joint_maps`], are already made (so
+    /// that builders of many primitives share them).
+    pub(super) fn with_joint_maps(skins: &[GltfSkinInfo], joint_maps: Rc<JointMaps>) -> Self {
         Self {
             mesh: IndexedMesh::default(),
             normals: Vec::new(),

@@ -168,11 +168,19 @@ pub fn load_gltf_primitives_with_limits(
     let (document, data, skins) = open(&bytes, path.parent(), limits)?;
     let instances = collect_instances(&document)?;
     let mut out = Vec::new();
+    // The skin of the first node showing each mesh, and the joint maps per primary skin,
+    // made once for all the primitives that share it.
+    let mut first_skin: std::collections::HashMap<usize, Option<usize>> =
+        std::collections::HashMap::new();
+    for instance in &instances {
+        first_skin
+            .entry(instance.mesh.index())
+            .or_insert(instance.skin);
+    }
+    let mut maps: std::collections::HashMap<Option<usize>, std::rc::Rc<flatten::JointMaps>> =
+        std::collections::HashMap::new();
     for mesh in document.meshes() {
-        let skin = instances
-            .iter()
-            .find(|i| i.mesh.index() == mesh.index())
-            .and_then(|i| i.skin);
+        let skin = first_skin.get(&mesh.index()).copied().flatten();
         let instance = scene::Instance {
             mesh: mesh.clone(),
             skin,
@@ -180,7 +188,11 @@ pub fn load_gltf_primitives_with_limits(
         };
         for primitive in mesh.primitives() {
             let key = format!("Mesh{}/Primitive{}", mesh.index(), primitive.index());
-            let mut builder = Builder::new(&skins, std::slice::from_ref(&instance));
+            let joint_maps = maps
+                .entry(skin)
+                .or_insert_with(|| std::rc::Rc::new(flatten::joint_maps(&skins, skin)))
+                .clone();
+            let mut builder = Builder::with_joint_maps(&skins, joint_maps);
             builder.add_primitive(&data, &primitive, &instance)?;
             let mut import = builder.finish(Vec::new());
             if import.mesh.indices.is_empty() {
