@@ -1,7 +1,7 @@
 //! Linear blend skinning of the vertices a polygon cache refers to (sections 5.3 and 5.4).
 
 use super::{Influences, MAX_INFLUENCES};
-use glam::{Mat4, Vec3, Vec3A, Vec4};
+use glam::{Mat3, Mat4, Vec3, Vec3A, Vec4};
 
 /// The blended affine skinning matrix of one vertex, as four columns.
 ///
@@ -103,6 +103,25 @@ fn apply_normal(c: &[Vec4; 4], n: Vec3) -> Vec3 {
     } else {
         x * n.x + y * n.y + z * n.z
     })
+}
+
+/// The matrix that turns normals as `linear` turns points, up to a positive factor: its
+/// cofactor matrix (the inverse transpose times the determinant, no division),
+/// sign-corrected for a mirroring matrix; a singular `linear` (a joint scaled to zero) gives
+/// `linear` itself, so normals stay finite.
+#[must_use]
+#[cfg_attr(not(feature = "bevy"), allow(dead_code))]
+pub(crate) fn normal_matrix(linear: Mat3) -> Mat3 {
+    let (x, y, z) = (linear.x_axis, linear.y_axis, linear.z_axis);
+    let cofactor = Mat3::from_cols(y.cross(z), z.cross(x), x.cross(y));
+    let det = z.dot(cofactor.z_axis);
+    if det > 0.0 {
+        cofactor
+    } else if det < 0.0 {
+        -cofactor
+    } else {
+        linear
+    }
 }
 
 /// Places one vertex the way [`blend_with_rigid`] does: a rigid vertex by its dominant
@@ -335,6 +354,33 @@ fn blend_impl(
                 let c = skin_matrix(matrices, joints[i], weights[i], is_rigid(i));
                 out_positions[i] = apply_point(&c, positions[i]);
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normal_matrix_is_the_inverse_transpose_up_to_scale_and_finite_when_singular() {
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        for linear in [
+            Mat3::from_diagonal(Vec3::new(2.0, 0.5, 3.0)),
+            Mat3::from_diagonal(Vec3::new(-1.0, 2.0, 1.0)),
+            Mat3::from_cols(Vec3::X, Vec3::new(0.4, 1.0, 0.0), Vec3::new(0.0, 0.3, 2.0)),
+        ] {
+            let expected = (linear.inverse().transpose() * n).normalize();
+            let got = (normal_matrix(linear) * n).normalize();
+            assert!(
+                got.abs_diff_eq(expected, 1e-5),
+                "{linear:?}: {got} vs {expected}"
+            );
+        }
+        // A joint scaled to zero, or flat: the inverse is NaN, this stays finite.
+        for singular in [Mat3::ZERO, Mat3::from_diagonal(Vec3::new(1.0, 1.0, 0.0))] {
+            assert!(!(singular.inverse().transpose() * n).is_finite());
+            assert!((normal_matrix(singular) * n).is_finite());
         }
     }
 }

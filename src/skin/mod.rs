@@ -62,6 +62,8 @@
 //! ```
 
 mod blend;
+#[cfg(feature = "bevy")]
+pub(crate) use blend::normal_matrix;
 mod decompose;
 mod error;
 mod influences;

@@ -286,7 +286,7 @@ pub(crate) fn initial_region_mesh(
     if let SkinRegionKind::Rigid { bone } = binding.kinds[region]
         && let Some(ib) = binding.inverse_bindposes.get(bone as usize)
     {
-        let normal_matrix = Mat3::from_mat4(*ib).inverse().transpose();
+        let normal_matrix = crate::skin::normal_matrix(Mat3::from_mat4(*ib));
         for p in &mut mesh.positions {
             *p = ib.transform_point3(*p);
         }
@@ -436,7 +436,7 @@ impl Job<'_> {
         if let Some(to_local) = self.to_local {
             // Normals stay unnormalised, as `blend` leaves them: Bevy's vertex shader
             // normalises every normal.
-            let normal_matrix = Mat3::from(to_local.matrix3).inverse().transpose();
+            let normal_matrix = crate::skin::normal_matrix(Mat3::from(to_local.matrix3));
             let linear = Mat3::from(to_local.matrix3);
             for &v in &r.written {
                 let v = v as usize;
@@ -503,7 +503,14 @@ fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
                         .get(bone as usize)
                         .copied()
                         .unwrap_or(Affine3A::IDENTITY);
-                    Some(joint.inverse() * skin.root_global)
+                    // A joint scaled to zero shows the region as a point whatever its
+                    // local vertices are: keep them finite.
+                    let inverse = joint.inverse();
+                    Some(if inverse.is_finite() {
+                        inverse * skin.root_global
+                    } else {
+                        skin.root_global
+                    })
                 }
                 SkinRegionKind::Deformable { .. } => None,
             };
