@@ -1393,3 +1393,32 @@ fn joint_maps_are_linear_in_joints_and_primitives() {
     assert!(start.elapsed().as_secs() < 20, "{:?}", start.elapsed());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn tiny_triangles_are_kept_and_huge_coordinates_refused() {
+    // Edges of 1e-13: the f32 area underflows to 0, yet the triangle is not degenerate.
+    for scale in [1e-13f32, 1e-20] {
+        let mut tiny = IndexedMesh::new(
+            vec![Vec3::ZERO, Vec3::X * scale, Vec3::Y * scale],
+            vec![0, 1, 2],
+        );
+        let report = tiny.validate().unwrap();
+        assert_eq!(report.degenerate_triangles_dropped, 0, "{scale}");
+    }
+    // A diagonal whose f32 square overflows.
+    let big = IndexedMesh::new(
+        vec![Vec3::ZERO, Vec3::X * 1e18, Vec3::Y * 1e18],
+        vec![0, 1, 2],
+    );
+    let d = big.diagonal();
+    assert!(
+        d.is_finite() && (d / 1.4142135e18 - 1.0).abs() < 1e-6,
+        "{d}"
+    );
+    // Beyond MAX_COORDINATE: an error naming the vertex.
+    let mut huge = IndexedMesh::new(vec![Vec3::ZERO, Vec3::X * 1e20, Vec3::Y], vec![0, 1, 2]);
+    match huge.validate() {
+        Err(MeshError::CoordinateOutOfRange { vertex: 1, .. }) => {}
+        other => panic!("expected CoordinateOutOfRange at vertex 1, got {other:?}"),
+    }
+}

@@ -70,6 +70,17 @@ pub enum MeshError {
         /// The vertex.
         vertex: usize,
     },
+    /// A position coordinate is beyond [`MAX_COORDINATE`](super::MAX_COORDINATE).
+    #[error(
+        "position coordinate {value:e} at vertex {vertex} is beyond ±1e18 (MAX_COORDINATE); \
+         scale the mesh down"
+    )]
+    CoordinateOutOfRange {
+        /// The first vertex beyond the range.
+        vertex: usize,
+        /// Its largest coordinate, in absolute value.
+        value: f32,
+    },
     /// An attribute does not have one entry per vertex.
     #[error("unequal attribute counts: {attribute} has {found} entries, POSITION has {expected}")]
     AttributeCountMismatch {

@@ -35,6 +35,10 @@ pub use weld::{WeldMap, weld_positions};
 use glam::{Vec2, Vec3, Vec4};
 use std::path::Path;
 
+/// The largest position coordinate (in absolute value) [`IndexedMesh::validate`] accepts:
+/// squared distances of larger ones leave `f32`'s range, and every cost built on them with it.
+pub const MAX_COORDINATE: f32 = 1e18;
+
 /// An indexed triangle mesh with optional per-vertex attributes.
 ///
 /// Every attribute that is present has exactly one entry per position. Triangles are three
@@ -125,14 +129,18 @@ impl IndexedMesh {
     /// Length of the diagonal of the bounding box (0 for an empty mesh).
     #[must_use]
     pub fn diagonal(&self) -> f32 {
-        self.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length())
+        // In f64: squared f32 extents overflow above about 1.8e19.
+        self.bounds().map_or(0.0, |(lo, hi)| {
+            (hi.as_dvec3() - lo.as_dvec3()).length() as f32
+        })
     }
 
     /// Checks the mesh invariants and drops degenerate triangles.
     ///
     /// Checks, in this order: the mesh has vertices and triangles, the index count is a multiple
     /// of three, every attribute has one entry per position, every coordinate is finite, every
-    /// index is in range. Then drops triangles whose corners repeat a vertex or whose area is
+    /// index is in range (and no position coordinate exceeds [`MAX_COORDINATE`]). Then drops
+    /// triangles whose corners repeat a vertex or whose area is
     /// zero, and reports how many. Joint weights are not checked here; skinning validates them.
     ///
     /// # Errors
@@ -186,6 +194,16 @@ impl IndexedMesh {
             });
         }
         if let Some(vertex) = self
+            .positions
+            .iter()
+            .position(|p| p.abs().max_element() > MAX_COORDINATE)
+        {
+            return Err(MeshError::CoordinateOutOfRange {
+                vertex,
+                value: self.positions[vertex].abs().max_element(),
+            });
+        }
+        if let Some(vertex) = self
             .normals
             .as_ref()
             .and_then(|v| v.iter().position(|p| !p.is_finite()))
@@ -235,7 +253,9 @@ impl IndexedMesh {
                 positions[b as usize],
                 positions[c as usize],
             );
-            if (pb - pa).cross(pc - pa).length_squared() == 0.0 {
+            // In f64: the f32 area of a triangle with edges below about 1e-12 underflows to 0.
+            let (da, db, dc) = (pa.as_dvec3(), pb.as_dvec3(), pc.as_dvec3());
+            if (db - da).cross(dc - da) == glam::DVec3::ZERO {
                 continue;
             }
             kept.extend_from_slice(tri);
