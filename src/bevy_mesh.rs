@@ -64,19 +64,27 @@ pub fn to_bevy_mesh(mesh: &IndexedMesh, indices: &[u32]) -> Mesh {
     out
 }
 
-/// An [`IndexedMesh`] from a Bevy triangle-list mesh: positions, and normals, UVs, tangents,
-/// joints and weights where present, and every other attribute (`UV_1`, colours, custom
-/// attributes of any format) as a [`VertexAttribute`]. A mesh without indices is read as one
-/// triangle per three vertices. The result is validated.
+/// An [`IndexedMesh`] from a Bevy triangle-list or triangle-strip mesh: positions, and
+/// normals, UVs, tangents, joints and weights where present, and every other attribute
+/// (`UV_1`, colours, custom attributes of any format) as a [`VertexAttribute`]. A mesh
+/// without indices is read as one triangle per three vertices (a strip: per vertex after the
+/// second); a strip becomes a list of the same winding, split at primitive restarts. The
+/// result is validated.
 ///
 /// # Errors
-/// [`MeshError::Parse`] when the mesh is not a triangle list, has no positions, has a
+/// [`MeshError::Parse`] when the mesh is not a triangle list or strip, has no positions, has a
 /// standard attribute in an unexpected format, or its data is only in the render world; any
 /// validation error of [`IndexedMesh::validate`].
 pub fn from_bevy_mesh(mesh: &Mesh) -> Result<IndexedMesh, MeshError> {
     let fail = |what: &str| MeshError::parse("Bevy mesh", "attributes", what.to_string());
-    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Err(fail("only triangle lists can be multiresolution meshes"));
+    let topology = mesh.primitive_topology();
+    if !matches!(
+        topology,
+        PrimitiveTopology::TriangleList | PrimitiveTopology::TriangleStrip
+    ) {
+        return Err(fail(
+            "only triangle lists and strips can be multiresolution meshes",
+        ));
     }
     let moved = || fail("mesh data was moved to the render world (RenderAssetUsages)");
     let mut out = IndexedMesh::default();
@@ -143,13 +151,64 @@ pub fn from_bevy_mesh(mesh: &Mesh) -> Result<IndexedMesh, MeshError> {
     // Bevy keeps attributes sorted by id; the table keeps that order.
     out.attributes.sort_by_key(|a| a.id);
     let n = mesh.count_vertices();
-    out.indices = match mesh.try_indices_option().map_err(|_| moved())? {
-        Some(Indices::U16(i)) => i.iter().map(|&i| u32::from(i)).collect(),
-        Some(Indices::U32(i)) => i.clone(),
-        None => (0..n as u32).collect(),
+    let (indices, restart) = match mesh.try_indices_option().map_err(|_| moved())? {
+        Some(Indices::U16(i)) => (
+            i.iter().map(|&i| u32::from(i)).collect(),
+            u32::from(u16::MAX),
+        ),
+        Some(Indices::U32(i)) => (i.clone(), u32::MAX),
+        None => ((0..n as u32).collect(), u32::MAX),
+    };
+    out.indices = if topology == PrimitiveTopology::TriangleStrip {
+        strip_to_list(&indices, restart)
+    } else {
+        indices
     };
     out.validate()?;
     Ok(out)
+}
+
+/// A triangle strip's triangles as a list: one per three consecutive indices, every second
+/// one with its first two corners swapped so that all keep the strip's winding, runs split
+/// at the primitive-restart value `restart`. Triangles that repeat a vertex (strips use them
+/// to turn) stay, for validation to drop.
+fn strip_to_list(strip: &[u32], restart: u32) -> Vec<u32> {
+    let mut out = Vec::with_capacity(strip.len().saturating_sub(2) * 3);
+    for run in strip.split(|&i| i == restart) {
+        for (k, w) in run.windows(3).enumerate() {
+            if k % 2 == 0 {
+                out.extend_from_slice(&[w[0], w[1], w[2]]);
+            } else {
+                out.extend_from_slice(&[w[1], w[0], w[2]]);
+            }
+        }
+    }
+    out
+}
+
+/// The triangles a Bevy mesh draws: a list's indices (or vertices) over three, a strip's two
+/// fewer than each run between primitive restarts, none for lines and points. What the plugin
+/// counts for a conventional mesh in the budget.
+#[must_use]
+pub fn drawn_triangles(mesh: &Mesh) -> u64 {
+    let (count, strip_runs): (usize, Vec<usize>) = match (mesh.primitive_topology(), mesh.indices())
+    {
+        (PrimitiveTopology::TriangleList, Some(i)) => (i.len() / 3, Vec::new()),
+        (PrimitiveTopology::TriangleList, None) => (mesh.count_vertices() / 3, Vec::new()),
+        (PrimitiveTopology::TriangleStrip, Some(Indices::U16(i))) => {
+            (0, i.split(|&i| i == u16::MAX).map(<[u16]>::len).collect())
+        }
+        (PrimitiveTopology::TriangleStrip, Some(Indices::U32(i))) => {
+            (0, i.split(|&i| i == u32::MAX).map(<[u32]>::len).collect())
+        }
+        (PrimitiveTopology::TriangleStrip, None) => (0, vec![mesh.count_vertices()]),
+        _ => (0, Vec::new()),
+    };
+    count as u64
+        + strip_runs
+            .iter()
+            .map(|&n| n.saturating_sub(2) as u64)
+            .sum::<u64>()
 }
 
 /// Bevy's numeric id of an attribute (`MeshVertexAttributeId` keeps it private; its order is
@@ -358,5 +417,58 @@ mod tests {
             .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3]; 2]);
         let err = from_bevy_mesh(&lines).unwrap_err();
         assert!(err.to_string().contains("triangle lists"), "{err}");
+    }
+
+    #[test]
+    fn strips_become_lists_and_count_as_drawn() {
+        let quad = |topology, indices: Option<Indices>| {
+            let mut mesh = Mesh::new(topology, RenderAssetUsages::default())
+                .with_inserted_attribute(
+                    Mesh::ATTRIBUTE_POSITION,
+                    vec![
+                        [0.0f32, 0.0, 0.0],
+                        [1.0, 0.0, 0.0],
+                        [0.0, 1.0, 0.0],
+                        [1.0, 1.0, 0.0],
+                    ],
+                );
+            if let Some(indices) = indices {
+                mesh.insert_indices(indices);
+            }
+            mesh
+        };
+        // A strip of four vertices: two triangles, both facing +Z like the list's.
+        let strip = quad(PrimitiveTopology::TriangleStrip, None);
+        let list = quad(
+            PrimitiveTopology::TriangleList,
+            Some(Indices::U16(vec![0, 1, 2, 2, 1, 3])),
+        );
+        let (from_strip, from_list) = (
+            from_bevy_mesh(&strip).unwrap(),
+            from_bevy_mesh(&list).unwrap(),
+        );
+        assert_eq!(from_strip.indices, vec![0, 1, 2, 2, 1, 3]);
+        assert_eq!(from_strip.indices, from_list.indices);
+        // Restarts split runs; counts follow what the GPU draws.
+        let restarted = quad(
+            PrimitiveTopology::TriangleStrip,
+            Some(Indices::U16(vec![0, 1, 2, u16::MAX, 1, 3, 2])),
+        );
+        assert_eq!(
+            from_bevy_mesh(&restarted).unwrap().indices,
+            vec![0, 1, 2, 1, 3, 2]
+        );
+        assert_eq!(drawn_triangles(&strip), 2);
+        assert_eq!(drawn_triangles(&restarted), 2);
+        assert_eq!(drawn_triangles(&list), 2);
+        for topology in [
+            PrimitiveTopology::LineList,
+            PrimitiveTopology::LineStrip,
+            PrimitiveTopology::PointList,
+        ] {
+            let mesh = quad(topology, Some(Indices::U16(vec![0, 1, 2, 3, 0, 2])));
+            assert_eq!(drawn_triangles(&mesh), 0, "{topology:?}");
+            assert!(from_bevy_mesh(&mesh).is_err());
+        }
     }
 }

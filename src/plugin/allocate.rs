@@ -90,10 +90,7 @@ pub(crate) fn allocate(
     let fixed_cost: u64 = fixed
         .iter()
         .filter_map(|m| meshes.get(&m.0))
-        .map(|m| match m.indices() {
-            Some(i) => i.len() as u64 / 3,
-            None => m.count_vertices() as u64 / 3,
-        })
+        .map(crate::bevy_mesh::drawn_triangles)
         .sum();
     frame.serial += 1;
     let mut items: Vec<ModelItem> = models.iter_mut().collect();
