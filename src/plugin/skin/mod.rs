@@ -220,7 +220,9 @@ impl SkinState {
         for (j, ib) in self.binding.inverse_bindposes.iter().enumerate() {
             let global = match joints.get(j).map(|&e| globals.get(e)) {
                 Some(Ok(g)) => g.affine(),
-                _ => {
+                // Past the listed joints (warned apart): the bind pose stays.
+                None => self.joint_globals[j],
+                Some(Err(_)) => {
                     missing = true;
                     self.joint_globals[j]
                 }
@@ -551,6 +553,13 @@ pub(crate) fn update_skins(
         let Some(world) = &mut instance.skinned_boxes else {
             continue;
         };
+        if joints.joints.len() < state.binding.joint_count() {
+            warn_once!(
+                "a skinned MultiresModel's MultiresSkin lists {} joints, its asset's skin has {}: the joints past the list keep their bind pose",
+                joints.joints.len(),
+                state.binding.joint_count()
+            );
+        }
         if state.update_matrices(root, &joints.joints, &globals, &instance.obbs, world) {
             warn_once!(
                 "a skinned MultiresModel names a joint entity without a GlobalTransform; that joint keeps its last pose"
