@@ -877,7 +877,30 @@ fn replace_numbers(text: &str, edits: &[(usize, u32)]) -> String {
     out
 }
 
+/// An OBJ with every statement the reader knows: positions, UVs, normals, a concave face,
+/// relative indices, comments and a group.
+const OBJ_SEED: &str = "# seed\nv 0 0 0\nv 3 0 0\nv 3 2 0\nv 2 2 0\nv 2 1 0\nv 1 1 0\n\
+    v 1 2 0\nv 0 2 0\nvt 0 0\nvt 1 1\nvn 0 0 1\ng part\nf 1/1/1 2/2/1 3/1/1 4/2/1 5/1/1 \
+    6/2/1 7/1/1 8/2/1\nf -3//1 -2//1 -1//1\r\n";
+
 proptest::proptest! {
+    #[test]
+    fn mutated_obj_never_panics(
+        edits in proptest::collection::vec((0usize..200, proptest::num::u8::ANY), 1..6),
+    ) {
+        let mut bytes = OBJ_SEED.as_bytes().to_vec();
+        for (at, value) in edits {
+            let at = at % bytes.len();
+            // Mostly characters the grammar uses, so that statements stay half-valid.
+            let grammar = b"0123456789-/ .\nfve";
+            bytes[at] = match value % 4 {
+                0 => grammar[usize::from(value) % grammar.len()],
+                _ => value,
+            };
+        }
+        let _ = parse_obj(&String::from_utf8_lossy(&bytes)).map(|mut m| m.validate());
+    }
+
     #[test]
     fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..512)) {
         let _ = parse_ply(&bytes);
