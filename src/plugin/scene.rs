@@ -108,7 +108,10 @@ impl MultiresSceneModels {
 #[derive(Component, Clone, Debug, PartialEq, Eq)]
 pub struct MultiresSourceMesh(pub Handle<Mesh>);
 
-/// Built assets by source mesh (and skin), shared by every scene instance.
+/// Built assets by source mesh (and skin), shared by every scene instance. A built asset is
+/// held (pinned) only until the scenes waiting for it have their models; from then on the
+/// models hold it, and once none does Bevy drops it and its entry goes (a later scene builds
+/// it again). Entries of source meshes that are gone go too.
 #[derive(Resource, Default)]
 pub(crate) struct SceneAssetCache {
     built: HashMap<BuildKey, Built>,
@@ -141,7 +144,9 @@ enum Built {
     Loading(Handle<MultiresMesh>, Box<BuildInputs>),
     /// Building on the async compute pool.
     Pending(Task<Result<MultiresMesh, MultiresError>>),
-    Ok(Handle<MultiresMesh>, usize),
+    /// Built: the asset, its vertices with more than two influences, and the handle that
+    /// keeps it until a scene's models hold it.
+    Ok(AssetId<MultiresMesh>, usize, Option<Handle<MultiresMesh>>),
     Failed,
 }
 
@@ -214,9 +219,31 @@ fn build(
 }
 
 impl SceneAssetCache {
+    /// Lets go of every built asset: from now on only models hold them.
+    fn unpin(&mut self) {
+        for built in self.built.values_mut() {
+            if let Built::Ok(_, _, pin) = built {
+                *pin = None;
+            }
+        }
+    }
+
     /// Collects the baked assets that loaded (building those that did not load or fit) and
     /// the builds that finished: their assets join `Assets<MultiresMesh>`.
-    fn poll(&mut self, multires: &mut Assets<MultiresMesh>, server: &AssetServer) {
+    fn poll(
+        &mut self,
+        multires: &mut Assets<MultiresMesh>,
+        meshes: &Assets<Mesh>,
+        server: &AssetServer,
+    ) {
+        // Assets no model holds any more, and source meshes that are gone, leave the cache.
+        self.built.retain(|key, built| {
+            meshes.contains(key.0)
+                && match built {
+                    Built::Ok(id, _, pin) => pin.is_some() || multires.contains(*id),
+                    _ => true,
+                }
+        });
         for built in self.built.values_mut() {
             if let Built::Loading(handle, _) = built {
                 let asset = multires.get(&*handle);
@@ -231,7 +258,7 @@ impl SceneAssetCache {
                 match multires.get(&handle) {
                     Some(asset) if inputs.fits(asset) => {
                         let more = asset.skin().map_or(0, |s| s.more_than_two());
-                        *built = Built::Ok(handle, more);
+                        *built = Built::Ok(handle.id(), more, Some(handle));
                     }
                     Some(_) => {
                         warn!(
@@ -261,7 +288,8 @@ impl SceneAssetCache {
                             "{more} skinned vertices have more than two influences: they join the region of their two largest and blend with all of them"
                         );
                     }
-                    Built::Ok(multires.add(asset), more)
+                    let handle = multires.add(asset);
+                    Built::Ok(handle.id(), more, Some(handle))
                 }
                 Err(e) => {
                     warn!("a mesh stays conventional (fixed cost): {e}");
@@ -309,7 +337,11 @@ pub(crate) fn convert_scenes(
         }
         return;
     };
-    cache.poll(&mut multires, &server);
+    cache.poll(&mut multires, &meshes, &server);
+    if scenes.is_empty() {
+        // No scene waits for an asset: the models hold what they show.
+        cache.unpin();
+    }
     for (root, options, geomorph) in &scenes {
         let found: Vec<Entity> = children
             .iter_descendants(root)
@@ -350,6 +382,7 @@ pub(crate) fn convert_scenes(
             &found,
             &mesh_entities,
             &meshes,
+            &mut multires,
             geomorph,
             options,
         );
@@ -422,12 +455,14 @@ impl SceneAssetCache {
 
     /// Makes a scene's models once all of its assets are done: a skinned model under each
     /// skinned mesh, unskinned meshes models in place, the others conventional.
+    #[allow(clippy::too_many_arguments)]
     fn make_models(
         &mut self,
         commands: &mut Commands,
         found: &[Entity],
         mesh_entities: &MeshEntities,
         meshes: &Assets<Mesh>,
+        multires: &mut Assets<MultiresMesh>,
         geomorph: Option<&Geomorph>,
         options: &MultiresScene,
     ) -> MultiresSceneModels {
@@ -452,7 +487,10 @@ impl SceneAssetCache {
             }
             let key = build_key(mesh3d, skin, options);
             let built = match self.built.get(&key) {
-                Some(Built::Ok(handle, more)) => Some((handle.clone(), *more)),
+                Some(Built::Ok(id, more, pin)) => pin
+                    .clone()
+                    .or_else(|| multires.get_strong_handle(*id))
+                    .map(|handle| (handle, *more)),
                 _ => None,
             };
             let Some((handle, more_than_two)) = built else {

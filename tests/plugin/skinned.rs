@@ -15,8 +15,9 @@ use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, AslodViewport, Geomorph, MultiresInstance, MultiresScene,
-    MultiresSceneModels, MultiresSourceMesh, PolygonBudget, VariableLevel, ViewDependent,
+    AslodPlugin, AslodStats, AslodViewport, Geomorph, MultiresInstance, MultiresMesh,
+    MultiresScene, MultiresSceneModels, MultiresSourceMesh, PolygonBudget, VariableLevel,
+    ViewDependent,
 };
 use std::time::Duration;
 
@@ -544,4 +545,38 @@ fn a_skinned_model_made_view_dependent_keeps_its_regions() {
     assert_eq!(skinned, 4, "the robot's four skinned primitives");
     let mut levels = app.world_mut().query_filtered::<(), With<VariableLevel>>();
     assert_eq!(levels.iter(app.world()).count(), 0);
+}
+
+#[test]
+fn despawned_scenes_leave_no_built_assets_behind() {
+    let mut app = app(20_000, ASSETS);
+    let count = |app: &App| app.world().resource::<Assets<MultiresMesh>>().len();
+    let baseline = count(&app);
+    for round in 0..2 {
+        let root = spawn_scene(&mut app, MANNEQUIN);
+        for _ in 0..3_000 {
+            app.update();
+            if app.world().get::<MultiresSceneModels>(root).is_some() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        assert!(
+            app.world().get::<MultiresSceneModels>(root).is_some(),
+            "round {round}: the mannequin was converted"
+        );
+        for _ in 0..3 {
+            app.update();
+        }
+        assert!(count(&app) > baseline, "round {round}: its asset is built");
+        app.world_mut().entity_mut(root).despawn();
+        for _ in 0..5 {
+            app.update();
+        }
+        assert_eq!(
+            count(&app),
+            baseline,
+            "round {round}: the scene's assets outlive it"
+        );
+    }
 }
