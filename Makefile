@@ -6,7 +6,7 @@ APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libude
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
-.PHONY: demo silvretta test check-deps deps lint bench bench-bevy bench-render bench-instances figure-11 compare
+.PHONY: demo silvretta test check-deps deps lint bench bench-bevy bench-render bench-instances soak figure-11 compare
 
 deps:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -79,6 +79,10 @@ bench-render: deps
 	$(CARGO) build --release --example render_cost
 	@for s in grid silvretta aerobic; do \
 		$(CARGO) run --release --quiet --example render_cost -- --scene $$s --frames 60; done
+
+# The long session: 10,000 frames of spawning, despawning and budget changes, headless.
+soak:
+	ASLOD_SOAK_FRAMES=10000 $(CARGO) test --all-features --test plugin soak -- --nocapture
 
 # The instance bench: shared levels against meshoptimizer levels under VisibilityRange.
 bench-instances: deps

@@ -10,4 +10,5 @@ mod geomorph;
 mod models;
 mod shared;
 mod skinned;
+mod soak;
 mod view_dependent;

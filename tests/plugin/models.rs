@@ -17,7 +17,7 @@ pub(super) mod scene;
 
 use scene::patch as terrain;
 
-fn asset() -> MultiresMesh {
+pub(super) fn asset() -> MultiresMesh {
     let mesh = terrain(25);
     let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2).expect("grid");
     MultiresMesh::from_indexed(&mesh, &partition).expect("valid terrain")
@@ -34,7 +34,7 @@ pub(super) fn app(budget: u32) -> App {
     app
 }
 
-fn spawn_camera(app: &mut App, at: Vec3) -> Entity {
+pub(super) fn spawn_camera(app: &mut App, at: Vec3) -> Entity {
     app.world_mut()
         .spawn((
             Camera3d::default(),

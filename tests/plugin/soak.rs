@@ -1,0 +1,167 @@
+//! A long session, headless: a wandering camera over models of three kinds (regions, shared
+//! levels, view-dependent) spawned and despawned, materials and the budget changed, an asset
+//! reloaded in place. The budget holds every frame, nothing panics, and once everything is
+//! despawned the `Mesh` and `MultiresMesh` assets are back to where they started.
+//! `ASLOD_SOAK_FRAMES=10000 cargo test --release --all-features --test plugin soak`
+//! (`make soak`) runs it long; the default is short enough for CI.
+
+use super::models::{app, asset, spawn_camera};
+use super::view_dependent::cow;
+use bevy::prelude::*;
+use bevy_aslod::plugin::{
+    AslodStats, MultiresMesh, MultiresModel, PolygonBudget, SharedLevels, ViewDependent,
+};
+
+/// Resident memory in bytes (Linux; `None` elsewhere).
+fn resident_bytes() -> Option<u64> {
+    let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
+    let pages: u64 = statm.split_whitespace().nth(1)?.parse().ok()?;
+    Some(pages * 4096)
+}
+
+/// xorshift64: the same session every run.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n.max(1)
+    }
+
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+#[test]
+fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
+    let frames: usize = std::env::var("ASLOD_SOAK_FRAMES")
+        .ok()
+        .and_then(|f| f.parse().ok())
+        .unwrap_or(600);
+    let mut app = app(20_000);
+    let camera = spawn_camera(&mut app, Vec3::new(0.0, 30.0, 60.0));
+    app.update();
+    let counts = |app: &App| {
+        (
+            app.world().resource::<Assets<Mesh>>().len(),
+            app.world().resource::<Assets<MultiresMesh>>().len(),
+        )
+    };
+    let baseline = counts(&app);
+    let terrain = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(asset());
+    let refined = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(cow());
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut live: Vec<Entity> = Vec::new();
+    let mut budget = 20_000u32;
+    let mut allocated = 0;
+    let mut warm = None;
+    let mut peak_after_warm_up = 0u64;
+    for frame in 0..frames {
+        if frame == frames / 10 {
+            warm = resident_bytes();
+        }
+        // A camera anywhere around the field, looking somewhere into it.
+        let (angle, radius) = (
+            rng.unit() * std::f32::consts::TAU,
+            10.0 + rng.unit() * 110.0,
+        );
+        let eye = Vec3::new(
+            angle.cos() * radius,
+            2.0 + rng.unit() * 60.0,
+            angle.sin() * radius,
+        );
+        let target = Vec3::new(rng.unit() * 60.0 - 30.0, 0.0, rng.unit() * 60.0 - 30.0);
+        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+            Transform::from_translation(eye).looking_at(target, Vec3::Y);
+        if frame % 5 == 0 && live.len() < 14 {
+            let at = Vec3::new(rng.unit() * 60.0 - 30.0, 0.0, rng.unit() * 60.0 - 30.0);
+            let material = app
+                .world_mut()
+                .resource_mut::<Assets<StandardMaterial>>()
+                .add(StandardMaterial::default());
+            let mut model = match rng.below(3) {
+                0 => app.world_mut().spawn(MultiresModel(terrain.clone())),
+                1 => app
+                    .world_mut()
+                    .spawn((MultiresModel(terrain.clone()), SharedLevels::default())),
+                _ => app
+                    .world_mut()
+                    .spawn((MultiresModel(refined.clone()), ViewDependent::default())),
+            };
+            model.insert((MeshMaterial3d(material), Transform::from_translation(at)));
+            live.push(model.id());
+        }
+        if frame % 7 == 3 && !live.is_empty() {
+            let k = rng.below(live.len() as u64) as usize;
+            app.world_mut().entity_mut(live.swap_remove(k)).despawn();
+        }
+        if frame % 11 == 5 && !live.is_empty() {
+            let k = rng.below(live.len() as u64) as usize;
+            let material = app
+                .world_mut()
+                .resource_mut::<Assets<StandardMaterial>>()
+                .add(StandardMaterial::from_color(Color::srgb(
+                    rng.unit(),
+                    0.5,
+                    0.5,
+                )));
+            app.world_mut()
+                .entity_mut(live[k])
+                .insert(MeshMaterial3d(material));
+        }
+        if frame % 13 == 7 {
+            // Well above every model's coarsest level together (at most 14 small models).
+            budget = 8_000 + rng.below(60_000) as u32;
+            app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+        }
+        if frame % 97 == 50 {
+            // The terrain asset reloaded in place, as a re-baked file would be.
+            app.world_mut()
+                .resource_mut::<Assets<MultiresMesh>>()
+                .insert(terrain.id(), asset())
+                .expect("the terrain asset exists");
+        }
+        app.update();
+        if warm.is_some() {
+            peak_after_warm_up = peak_after_warm_up.max(resident_bytes().unwrap_or(0));
+        }
+        let stats = *app.world().resource::<AslodStats>();
+        if stats.allocated {
+            allocated += 1;
+            assert!(
+                stats.triangles <= u64::from(budget),
+                "frame {frame}: {} triangles under P = {budget}",
+                stats.triangles
+            );
+        }
+    }
+    assert!(
+        allocated > frames / 2,
+        "the budget was split in {allocated} frames"
+    );
+    for model in live.drain(..) {
+        app.world_mut().entity_mut(model).despawn();
+    }
+    drop((terrain, refined));
+    for _ in 0..5 {
+        app.update();
+    }
+    assert_eq!(
+        counts(&app),
+        baseline,
+        "(meshes, multires assets) after everything was despawned"
+    );
+}
