@@ -152,6 +152,19 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         allocated > frames / 2,
         "the budget was split in {allocated} frames"
     );
+    if let Some(warm) = warm {
+        let grown = peak_after_warm_up as f64 / warm as f64 - 1.0;
+        println!(
+            "soak: {frames} frames, resident {:.1} MB after warm-up, peak {:.1} MB after it ({:+.1}%)",
+            warm as f64 / 1e6,
+            peak_after_warm_up as f64 / 1e6,
+            grown * 100.0
+        );
+        // Allocator noise dominates short runs; the long run is held to 5%.
+        if frames >= 5_000 {
+            assert!(grown <= 0.05, "resident memory grew {:.1}%", grown * 100.0);
+        }
+    }
     for model in live.drain(..) {
         app.world_mut().entity_mut(model).despawn();
     }
