@@ -191,24 +191,22 @@ fn strip_to_list(strip: &[u32], restart: u32) -> Vec<u32> {
 /// counts for a conventional mesh in the budget.
 #[must_use]
 pub fn drawn_triangles(mesh: &Mesh) -> u64 {
-    let (count, strip_runs): (usize, Vec<usize>) = match (mesh.primitive_topology(), mesh.indices())
-    {
-        (PrimitiveTopology::TriangleList, Some(i)) => (i.len() / 3, Vec::new()),
-        (PrimitiveTopology::TriangleList, None) => (mesh.count_vertices() / 3, Vec::new()),
-        (PrimitiveTopology::TriangleStrip, Some(Indices::U16(i))) => {
-            (0, i.split(|&i| i == u16::MAX).map(<[u16]>::len).collect())
-        }
-        (PrimitiveTopology::TriangleStrip, Some(Indices::U32(i))) => {
-            (0, i.split(|&i| i == u32::MAX).map(<[u32]>::len).collect())
-        }
-        (PrimitiveTopology::TriangleStrip, None) => (0, vec![mesh.count_vertices()]),
-        _ => (0, Vec::new()),
-    };
-    count as u64
-        + strip_runs
-            .iter()
-            .map(|&n| n.saturating_sub(2) as u64)
-            .sum::<u64>()
+    /// Each run between restarts draws its length less two.
+    fn strip<T: PartialEq>(indices: &[T], restart: T) -> u64 {
+        indices
+            .split(|i| *i == restart)
+            .map(|run| run.len().saturating_sub(2) as u64)
+            .sum()
+    }
+    let vertices = mesh.count_vertices();
+    match (mesh.primitive_topology(), mesh.indices()) {
+        (PrimitiveTopology::TriangleList, Some(i)) => (i.len() / 3) as u64,
+        (PrimitiveTopology::TriangleList, None) => (vertices / 3) as u64,
+        (PrimitiveTopology::TriangleStrip, Some(Indices::U16(i))) => strip(i, u16::MAX),
+        (PrimitiveTopology::TriangleStrip, Some(Indices::U32(i))) => strip(i, u32::MAX),
+        (PrimitiveTopology::TriangleStrip, None) => vertices.saturating_sub(2) as u64,
+        _ => 0,
+    }
 }
 
 /// Bevy's numeric id of an attribute (`MeshVertexAttributeId` keeps it private; its order is
@@ -295,6 +293,19 @@ formats! {
 mod tests {
     use super::*;
 
+    /// The unit square of four vertices in the XY plane, without indices.
+    fn quad(topology: PrimitiveTopology) -> Mesh {
+        Mesh::new(topology, RenderAssetUsages::default()).with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            vec![
+                [0.0f32, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [1.0, 1.0, 0.0],
+            ],
+        )
+    }
+
     #[test]
     fn round_trip_keeps_attributes_and_triangles() {
         let mut mesh = IndexedMesh::new(
@@ -329,25 +340,13 @@ mod tests {
             V::Float64x3((0..n).map(|i| [i as f64, 0.25, -1.0]).collect()),
             V::Unorm8x4Bgra((0..n as u8).map(|i| [i, 9, 8, 7]).collect()),
         ];
-        let mut bevy_mesh = Mesh::new(
-            PrimitiveTopology::TriangleList,
-            RenderAssetUsages::default(),
-        )
-        .with_inserted_attribute(
-            Mesh::ATTRIBUTE_POSITION,
-            vec![
-                [0.0f32, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [1.0, 1.0, 0.0],
-            ],
-        )
-        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 0.0, 1.0]; n])
-        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.5f32, 0.5]; n])
-        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_1, vec![[0.25f32, 0.75]; n])
-        .with_inserted_attribute(Mesh::ATTRIBUTE_TANGENT, vec![[1.0f32, 0.0, 0.0, -1.0]; n])
-        .with_inserted_attribute(Mesh::ATTRIBUTE_COLOR, vec![[1.0f32, 0.5, 0.25, 1.0]; n])
-        .with_inserted_indices(Indices::U16(vec![0, 1, 2, 2, 1, 3]));
+        let mut bevy_mesh = quad(PrimitiveTopology::TriangleList)
+            .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 0.0, 1.0]; n])
+            .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.5f32, 0.5]; n])
+            .with_inserted_attribute(Mesh::ATTRIBUTE_UV_1, vec![[0.25f32, 0.75]; n])
+            .with_inserted_attribute(Mesh::ATTRIBUTE_TANGENT, vec![[1.0f32, 0.0, 0.0, -1.0]; n])
+            .with_inserted_attribute(Mesh::ATTRIBUTE_COLOR, vec![[1.0f32, 0.5, 0.25, 1.0]; n])
+            .with_inserted_indices(Indices::U16(vec![0, 1, 2, 2, 1, 3]));
         for (k, values) in custom.into_iter().enumerate() {
             let name: &'static str = Box::leak(format!("Vertex_Custom{k}").into_boxed_str());
             let attribute = MeshVertexAttribute::new(
@@ -422,16 +421,7 @@ mod tests {
     #[test]
     fn strips_become_lists_and_count_as_drawn() {
         let quad = |topology, indices: Option<Indices>| {
-            let mut mesh = Mesh::new(topology, RenderAssetUsages::default())
-                .with_inserted_attribute(
-                    Mesh::ATTRIBUTE_POSITION,
-                    vec![
-                        [0.0f32, 0.0, 0.0],
-                        [1.0, 0.0, 0.0],
-                        [0.0, 1.0, 0.0],
-                        [1.0, 1.0, 0.0],
-                    ],
-                );
+            let mut mesh = quad(topology);
             if let Some(indices) = indices {
                 mesh.insert_indices(indices);
             }

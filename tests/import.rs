@@ -1343,26 +1343,37 @@ fn load_limits_stop_a_small_file_before_it_allocates() {
     // 999,999 vertices of 12 bytes per node: the second node passes 20 MB.
     let file = zero_filled_gltf(999_999, 3, 2);
     assert!(file.len() < 1_000);
+    let defaults = LoadLimits::default();
     let tight = LoadLimits {
         decoded_bytes: 20_000_000,
-        ..LoadLimits::default()
+        ..defaults
     };
-    assert_eq!(limit_of(&file, &tight), "decoded_bytes");
-    let few_vertices = LoadLimits {
-        vertices: 1_500_000,
-        ..LoadLimits::default()
-    };
-    assert_eq!(limit_of(&file, &few_vertices), "vertices");
-    let few_joints = LoadLimits {
-        joints: 1,
-        ..LoadLimits::default()
-    };
-    assert_eq!(limit_of(&file, &few_joints), "joints");
-    let small_files = LoadLimits {
-        file_bytes: 100,
-        ..LoadLimits::default()
-    };
-    assert_eq!(limit_of(&file, &small_files), "file_bytes");
+    for (limits, expected) in [
+        (tight, "decoded_bytes"),
+        (
+            LoadLimits {
+                vertices: 1_500_000,
+                ..defaults
+            },
+            "vertices",
+        ),
+        (
+            LoadLimits {
+                joints: 1,
+                ..defaults
+            },
+            "joints",
+        ),
+        (
+            LoadLimits {
+                file_bytes: 100,
+                ..defaults
+            },
+            "file_bytes",
+        ),
+    ] {
+        assert_eq!(limit_of(&file, &limits), expected);
+    }
     // The error says which limit and how to raise it.
     let e = load_gltf_slice_with_limits(&file, None, &tight)
         .unwrap_err()

@@ -326,12 +326,15 @@ pub(super) fn read_vertices(
             return Err(r.invalid(4, "a section is missing or present against the flags"));
         }
     }
-    let read_vec3 = |tag: &[u8; 4]| -> Result<Vec<Vec3>, MrmError> {
-        let (v, r) = Reader::whole::<12, _>(section(tag)?, n, |b| Vec3::from(f32s::<3>(&b)))?;
-        if let Some(k) = v.iter().position(|p| !p.is_finite()) {
-            return Err(r.invalid(12 * k, "a value is not finite"));
-        }
-        Ok(v)
+    let finite = "a value is not finite";
+    let read_vec3 = |tag: &[u8; 4]| {
+        checked::<12, _>(
+            section(tag)?,
+            n,
+            |b| Vec3::from(f32s::<3>(&b)),
+            |p| p.is_finite(),
+            finite,
+        )
     };
     let positions = read_vec3(b"POS ")?;
     let normals = (attributes & NORMALS != 0)
@@ -339,12 +342,13 @@ pub(super) fn read_vertices(
         .transpose()?;
     let uvs = (attributes & UVS != 0)
         .then(|| {
-            let (v, r) =
-                Reader::whole::<8, _>(section(b"UV0 ")?, n, |b| Vec2::from(f32s::<2>(&b)))?;
-            match v.iter().position(|t| !t.is_finite()) {
-                Some(k) => Err(r.invalid(8 * k, "a value is not finite")),
-                None => Ok(v),
-            }
+            checked::<8, _>(
+                section(b"UV0 ")?,
+                n,
+                |b| Vec2::from(f32s::<2>(&b)),
+                |t| t.is_finite(),
+                finite,
+            )
         })
         .transpose()?;
     let joints = (attributes & JOINTS != 0)
@@ -357,24 +361,24 @@ pub(super) fn read_vertices(
         .map(|(v, _)| v);
     let weights = (attributes & WEIGHTS != 0)
         .then(|| {
-            let (v, r) = Reader::whole::<16, _>(section(b"WGT ")?, n, |b| f32s::<4>(&b))?;
-            match v
-                .iter()
-                .position(|w| w.iter().any(|x| !(x.is_finite() && *x >= 0.0)))
-            {
-                Some(k) => Err(r.invalid(16 * k, "a weight is negative or not finite")),
-                None => Ok(v),
-            }
+            checked::<16, _>(
+                section(b"WGT ")?,
+                n,
+                |b| f32s::<4>(&b),
+                |w| w.iter().all(|x| x.is_finite() && *x >= 0.0),
+                "a weight is negative or not finite",
+            )
         })
         .transpose()?;
     let tangents = (attributes & TANGENTS != 0)
         .then(|| {
-            let (v, r) =
-                Reader::whole::<16, _>(section(b"TAN ")?, n, |b| Vec4::from(f32s::<4>(&b)))?;
-            match v.iter().position(|t| !t.is_finite()) {
-                Some(k) => Err(r.invalid(16 * k, "a value is not finite")),
-                None => Ok(v),
-            }
+            checked::<16, _>(
+                section(b"TAN ")?,
+                n,
+                |b| Vec4::from(f32s::<4>(&b)),
+                |t| t.is_finite(),
+                finite,
+            )
         })
         .transpose()?;
     let further = if attributes & FURTHER != 0 {
@@ -395,6 +399,22 @@ pub(super) fn read_vertices(
     mesh.validate_vertex_table()
         .map_err(|e| MrmError::Attributes(e.to_string()))?;
     Ok(mesh)
+}
+
+/// The `n` records of `N` bytes of a section, decoded, each passing `ok`; the first that does
+/// not is `problem` at its offset.
+fn checked<const N: usize, T>(
+    section: Section<'_>,
+    n: usize,
+    decode: impl Fn([u8; N]) -> T,
+    ok: impl Fn(&T) -> bool,
+    problem: &'static str,
+) -> Result<Vec<T>, MrmError> {
+    let (v, r) = Reader::whole::<N, _>(section, n, decode)?;
+    match v.iter().position(|t| !ok(t)) {
+        Some(k) => Err(r.invalid(N * k, problem)),
+        None => Ok(v),
+    }
 }
 
 /// The further attributes of `n` vertices (`ATTR`): a count, then per attribute its name,

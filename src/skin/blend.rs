@@ -105,23 +105,24 @@ fn apply_normal(c: &[Vec4; 4], n: Vec3) -> Vec3 {
     })
 }
 
-/// The matrix that turns normals as `linear` turns points, up to a positive factor: its
-/// cofactor matrix (the inverse transpose times the determinant, no division),
-/// sign-corrected for a mirroring matrix; a singular `linear` (a joint scaled to zero) gives
-/// `linear` itself, so normals stay finite.
+/// The matrix that turns normals as `linear` turns points, up to a positive factor: the
+/// matrix of [`apply_normal`] (its cofactor matrix, sign-corrected for a mirroring matrix; a
+/// singular `linear`, a joint scaled to zero, gives `linear` itself, so normals stay finite).
 #[must_use]
 #[cfg_attr(not(feature = "bevy"), allow(dead_code))]
 pub(crate) fn normal_matrix(linear: Mat3) -> Mat3 {
-    let (x, y, z) = (linear.x_axis, linear.y_axis, linear.z_axis);
-    let cofactor = Mat3::from_cols(y.cross(z), z.cross(x), x.cross(y));
-    let det = z.dot(cofactor.z_axis);
-    if det > 0.0 {
-        cofactor
-    } else if det < 0.0 {
-        -cofactor
-    } else {
-        linear
-    }
+    // `apply_normal` on the basis vectors: its columns.
+    let c = [
+        linear.x_axis.extend(0.0),
+        linear.y_axis.extend(0.0),
+        linear.z_axis.extend(0.0),
+        Vec4::W,
+    ];
+    Mat3::from_cols(
+        apply_normal(&c, Vec3::X),
+        apply_normal(&c, Vec3::Y),
+        apply_normal(&c, Vec3::Z),
+    )
 }
 
 /// Places one vertex the way [`blend_with_rigid`] does: a rigid vertex by its dominant

@@ -27,7 +27,9 @@ use accessors::Data;
 use container::{gltf_error, load_buffers, parse_document, split_glb};
 use flatten::Builder;
 use scene::{collect_instances, read_skin};
+use std::collections::HashMap;
 use std::path::Path;
+use std::rc::Rc;
 
 /// Reads a `.gltf` or `.glb` file and flattens its default scene into one mesh; see
 /// [`load_gltf_slice`]. External buffers are resolved relative to the file's directory.
@@ -170,15 +172,13 @@ pub fn load_gltf_primitives_with_limits(
     let mut out = Vec::new();
     // The skin of the first node showing each mesh, and the joint maps per primary skin,
     // made once for all the primitives that share it.
-    let mut first_skin: std::collections::HashMap<usize, Option<usize>> =
-        std::collections::HashMap::new();
+    let mut first_skin: HashMap<usize, Option<usize>> = HashMap::new();
     for instance in &instances {
         first_skin
             .entry(instance.mesh.index())
             .or_insert(instance.skin);
     }
-    let mut maps: std::collections::HashMap<Option<usize>, std::rc::Rc<flatten::JointMaps>> =
-        std::collections::HashMap::new();
+    let mut maps: HashMap<Option<usize>, Rc<flatten::JointMaps>> = HashMap::new();
     for mesh in document.meshes() {
         let skin = first_skin.get(&mesh.index()).copied().flatten();
         let instance = scene::Instance {
@@ -190,7 +190,7 @@ pub fn load_gltf_primitives_with_limits(
             let key = format!("Mesh{}/Primitive{}", mesh.index(), primitive.index());
             let joint_maps = maps
                 .entry(skin)
-                .or_insert_with(|| std::rc::Rc::new(flatten::joint_maps(&skins, skin)))
+                .or_insert_with(|| Rc::new(flatten::joint_maps(&skins, skin)))
                 .clone();
             let mut builder = Builder::with_joint_maps(&skins, joint_maps);
             builder.add_primitive(&data, &primitive, &instance)?;
