@@ -6,7 +6,7 @@
 
 mod common;
 
-use bevy_aslod::mesh::IndexedMesh;
+use bevy_aslod::mesh::{IndexedMesh, LoadLimits};
 use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, FORMAT_VERSION, MrmError, MrmFile, MrmKind};
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
 use bevy_aslod::refine::VariableMesh;
@@ -468,12 +468,16 @@ fn exercise_assets(file: &MrmFile, rng: &mut Rng) {
     }
 }
 
-/// Checks that a refused file's error names where (a section and an offset).
+/// Checks that a refused file's error names where (a section and an offset), or the
+/// [`LoadLimits`] a damaged count exceeds (checked before the data it counts is read).
 fn assert_named(kind: &str, e: &MrmError) {
     let text = e.to_string();
     let named = matches!(e, MrmError::NotMrm | MrmError::NewerVersion { .. })
         || text.contains("byte ")
-        || matches!(e, MrmError::MissingSection(_));
+        || matches!(
+            e,
+            MrmError::MissingSection(_) | MrmError::LimitExceeded { .. }
+        );
     assert!(named, "{kind}: the error names no place: {text}");
 }
 
@@ -766,4 +770,137 @@ fn many_keys_are_checked_for_repeats_in_linear_time() {
     assert!(e.to_string().contains("repeated"), "{e}");
     // Quadratic, this took minutes; linear, milliseconds.
     assert!(start.elapsed().as_secs() < 20, "{:?}", start.elapsed());
+}
+
+#[test]
+fn load_limits_hold_for_mrm_files() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/mannequin.mrm");
+    let bytes = std::fs::read(path).unwrap();
+    let file = mrm::read(&bytes).unwrap();
+    let (_, mannequin) = &file.meshes[0];
+    let vertices = mannequin.regions.vertex_count() as u64;
+    let twice = mrm::write(&MrmFile {
+        build: file.build.clone(),
+        meshes: vec![
+            ("a".into(), mannequin.clone()),
+            ("b".into(), mannequin.clone()),
+        ],
+    });
+    let defaults = LoadLimits::default();
+    let limit_of = |bytes: &[u8], limits: LoadLimits| match mrm::read_with_limits(bytes, &limits) {
+        Err(MrmError::LimitExceeded { limit, .. }) => limit,
+        other => panic!("expected a limit, got {:?}", other.map(|f| f.meshes.len())),
+    };
+    for (file, limits, expected) in [
+        (
+            &twice,
+            LoadLimits {
+                keys: 1,
+                ..defaults
+            },
+            "keys",
+        ),
+        (
+            &bytes,
+            LoadLimits {
+                file_bytes: bytes.len() as u64 - 1,
+                ..defaults
+            },
+            "file_bytes",
+        ),
+        (
+            &bytes,
+            LoadLimits {
+                vertices: vertices - 1,
+                ..defaults
+            },
+            "vertices",
+        ),
+        (
+            &bytes,
+            LoadLimits {
+                triangles: 1_000,
+                ..defaults
+            },
+            "triangles",
+        ),
+        (
+            &bytes,
+            LoadLimits {
+                joints: 9,
+                ..defaults
+            },
+            "joints",
+        ),
+        (
+            &bytes,
+            LoadLimits {
+                decoded_bytes: 100_000,
+                ..defaults
+            },
+            "decoded_bytes",
+        ),
+    ] {
+        assert_eq!(limit_of(file, limits), expected);
+    }
+    // At the file's own counts, it reads.
+    let exact = LoadLimits {
+        keys: 2,
+        file_bytes: twice.len() as u64,
+        vertices,
+        joints: 10,
+        ..defaults
+    };
+    assert_eq!(
+        mrm::read_with_limits(&twice, &exact).unwrap().meshes.len(),
+        2
+    );
+    let e = mrm::read_with_limits(
+        &twice,
+        &LoadLimits {
+            keys: 1,
+            ..defaults
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("raise LoadLimits::keys"), "{e}");
+
+    let progressive = mrm::write_progressive(&build(&small(), false));
+    let n = small().vertex_count() as u64;
+    for (limits, expected) in [
+        (
+            LoadLimits {
+                vertices: n - 1,
+                ..defaults
+            },
+            "vertices",
+        ),
+        (
+            LoadLimits {
+                triangles: 10,
+                ..defaults
+            },
+            "triangles",
+        ),
+        (
+            LoadLimits {
+                file_bytes: 100,
+                ..defaults
+            },
+            "file_bytes",
+        ),
+    ] {
+        match mrm::read_progressive_with_limits(&progressive, &limits) {
+            Err(MrmError::LimitExceeded { limit, .. }) => assert_eq!(limit, expected),
+            other => panic!(
+                "expected {expected}, got {:?}",
+                other.map(|p| p.max_triangles())
+            ),
+        }
+    }
+    let within = LoadLimits {
+        vertices: n,
+        ..defaults
+    };
+    assert!(mrm::read_progressive_with_limits(&progressive, &within).is_ok());
 }

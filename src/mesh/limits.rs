@@ -6,7 +6,8 @@ use std::path::Path;
 
 /// How much one file may make the importers read and allocate, checked before anything is
 /// allocated. The defaults are generous for real assets (a 2 GiB file, 2 GiB of decoded
-/// attribute data, 100 million vertices and triangles, 65,536 joints per skin); a server
+/// attribute data, 100 million vertices and triangles, 65,536 joints per skin, a million
+/// assets in one `.mrm` file); a server
 /// baking files from untrusted sources may lower them, a pipeline with larger trusted files
 /// may raise them. Exceeding one is [`MeshError::LimitExceeded`], naming it.
 ///
@@ -31,6 +32,8 @@ pub struct LoadLimits {
     pub triangles: u64,
     /// Joints of one skin.
     pub joints: u64,
+    /// Assets (keys) in one `.mrm` file.
+    pub keys: u64,
 }
 
 impl Default for LoadLimits {
@@ -41,6 +44,7 @@ impl Default for LoadLimits {
             vertices: 100_000_000,
             triangles: 100_000_000,
             joints: 65_536,
+            keys: 1 << 20,
         }
     }
 }
@@ -53,6 +57,7 @@ impl LoadLimits {
         vertices: u64::MAX,
         triangles: u64::MAX,
         joints: u64::MAX,
+        keys: u64::MAX,
     };
 
     /// `Ok` when `value` is within limit `name` of value `max`.
@@ -70,7 +75,11 @@ impl LoadLimits {
     /// Reads a whole file within [`file_bytes`](Self::file_bytes): its length is checked
     /// first, and no more than the limit is ever read (a device or a growing file stops
     /// there).
-    pub(crate) fn read_file(&self, path: &Path) -> MeshResult<Vec<u8>> {
+    ///
+    /// # Errors
+    /// [`MeshError::Io`] when the file cannot be read, [`MeshError::LimitExceeded`] when it
+    /// is longer than the limit.
+    pub fn read_file(&self, path: &Path) -> MeshResult<Vec<u8>> {
         let file = std::fs::File::open(path).map_err(|e| MeshError::io(path, e))?;
         let length = file.metadata().map_err(|e| MeshError::io(path, e))?.len();
         Self::check("file_bytes", length, self.file_bytes)?;

@@ -2,8 +2,9 @@
 
 use super::container::{self, Reader, Section, f32s};
 use super::progressive::{self, Counts, section};
-use super::{BakedMesh, BakedSkin, BuildInfo, FORMAT_VERSION, MrmError, MrmFile};
+use super::{BakedMesh, BakedSkin, BuildInfo, FORMAT_VERSION, MrmError, MrmFile, within};
 use crate::bounds::Obb;
+use crate::mesh::LoadLimits;
 use crate::multires::{BuildOptions, CollapseOperator};
 use crate::regions::{FrontEvent, Partition, Region, RegionMesh};
 use crate::skin::SkinRegionKind;
@@ -220,12 +221,13 @@ fn skin_bytes(s: &BakedSkin) -> Vec<u8> {
 }
 
 /// Reads a file of assets (the sections `FILE_SECTIONS`), checking everything.
-pub(super) fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
+pub(super) fn read(bytes: &[u8], limits: &LoadLimits) -> Result<MrmFile, MrmError> {
     let version = container::peek(bytes).map_or(FORMAT_VERSION, |(v, _)| v);
     let sections = container::read(bytes, 0, FORMAT_VERSION, &FILE_SECTIONS)?;
     let build = read_build(section(&sections, b"SRC ")?, version)?;
     let mut r = Reader::new(section(&sections, b"KEYS")?);
     let count = r.u32()? as usize;
+    within("keys", count, limits.keys)?;
     let mut keys: Vec<(String, u64)> = Vec::new();
     let mut seen = std::collections::HashSet::new();
     for _ in 0..count {
@@ -248,7 +250,7 @@ pub(super) fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
             return Err(r.invalid(0, "the entries' lengths exceed the ASET section"));
         };
         let slice = &aset.bytes[at as usize..end as usize];
-        meshes.push((key, read_entry(slice, aset.offset + at, version)?));
+        meshes.push((key, read_entry(slice, aset.offset + at, version, limits)?));
         at = end;
     }
     if at != aset.bytes.len() as u64 {
@@ -356,7 +358,12 @@ fn read_build(s: Section<'_>, version: u32) -> Result<BuildInfo, MrmError> {
     })
 }
 
-fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmError> {
+fn read_entry(
+    bytes: &[u8],
+    base: u64,
+    version: u32,
+    limits: &LoadLimits,
+) -> Result<BakedMesh, MrmError> {
     let sections = container::read(bytes, base, version, &ENTRY_SECTIONS)?;
     let mut r = Reader::new(section(&sections, b"HEAD")?);
     let n = r.u32()? as usize;
@@ -366,6 +373,7 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
     if has_skin > 1 || has_variable > 1 {
         return Err(r.invalid(4, "unknown flags"));
     }
+    within("vertices", n, limits.vertices)?;
     let present = |tag: &[u8; 4]| sections.iter().any(|s| &s.tag == tag);
     if present(b"SKIN") != (has_skin != 0) || present(b"VARI") != (has_variable != 0) {
         return Err(r.invalid(4, "a section is missing or present against the flags"));
@@ -415,6 +423,12 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
     let lengths = rr.items::<8, _>(region_count, u64::from_le_bytes)?;
     let mut at = rr.offset() - rgns.offset;
     let mut regions = Vec::with_capacity(region_count);
+    let mut tally = Tally {
+        limits,
+        vertex_bytes: source.memory_bytes() / n.max(1),
+        triangles: 0,
+        decoded: 0,
+    };
     for length in lengths {
         let end = at
             .checked_add(length)
@@ -423,7 +437,13 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
             return Err(rr.invalid(4, "the regions' lengths exceed the RGNS section"));
         };
         let slice = &rgns.bytes[at as usize..end as usize];
-        regions.push(read_region(slice, rgns.offset + at, version, &source)?);
+        regions.push(read_region(
+            slice,
+            rgns.offset + at,
+            version,
+            &source,
+            &mut tally,
+        )?);
         at = end;
     }
     if at != rgns.bytes.len() as u64 {
@@ -457,14 +477,18 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
         if source.joints.is_none() || source.weights.is_none() {
             return Err(r.invalid(4, "a skinned asset without joints or weights"));
         }
-        Some(read_skin(section(&sections, b"SKIN")?, region_count)?)
+        Some(read_skin(
+            section(&sections, b"SKIN")?,
+            region_count,
+            limits,
+        )?)
     } else {
         None
     };
     let variable = if has_variable != 0 {
         let s = section(&sections, b"VARI")?;
         let nested = container::read(s.bytes, s.offset, version, &progressive::SECTIONS)?;
-        Some(progressive::read(&nested)?)
+        Some(progressive::read(&nested, limits)?)
     } else {
         None
     };
@@ -480,11 +504,32 @@ fn read_entry(bytes: &[u8], base: u64, version: u32) -> Result<BakedMesh, MrmErr
     })
 }
 
+/// What an asset's regions ask for so far, against the limits.
+struct Tally<'a> {
+    limits: &'a LoadLimits,
+    /// Bytes of one source vertex (each region copies its vertices from the source).
+    vertex_bytes: usize,
+    triangles: usize,
+    decoded: usize,
+}
+
+impl Tally<'_> {
+    /// Counts a region of `local` vertices and `triangles` triangles, before it is read.
+    fn add(&mut self, local: usize, triangles: usize) -> Result<(), MrmError> {
+        self.triangles = self.triangles.saturating_add(triangles);
+        let bytes = local.saturating_mul(self.vertex_bytes);
+        self.decoded = self.decoded.saturating_add(bytes);
+        within("triangles", self.triangles, self.limits.triangles)?;
+        within("decoded_bytes", self.decoded, self.limits.decoded_bytes)
+    }
+}
+
 fn read_region(
     bytes: &[u8],
     base: u64,
     version: u32,
     source: &crate::mesh::IndexedMesh,
+    tally: &mut Tally<'_>,
 ) -> Result<Region, MrmError> {
     let sections = container::read(bytes, base, version, &REGION_SECTIONS)?;
     let mut r = Reader::new(section(&sections, b"RGN ")?);
@@ -507,6 +552,7 @@ fn read_region(
     if own_vertices == 0 || own_vertices > local {
         return Err(r.invalid(4, "the own vertex count is zero or above the local one"));
     }
+    tally.add(local, counts.indices / 3)?;
     if !(lo.is_finite() && hi.is_finite()) {
         return Err(r.invalid(32, "the bounds are not finite"));
     }
@@ -569,9 +615,14 @@ fn read_region(
     })
 }
 
-fn read_skin(s: Section<'_>, region_count: usize) -> Result<BakedSkin, MrmError> {
+fn read_skin(
+    s: Section<'_>,
+    region_count: usize,
+    limits: &LoadLimits,
+) -> Result<BakedSkin, MrmError> {
     let mut r = Reader::new(s);
     let joints = r.u32()? as usize;
+    within("joints", joints, limits.joints)?;
     if joints == 0 || joints > usize::from(u16::MAX) + 1 {
         return Err(r.invalid(0, "the joint count is zero or above 65,536"));
     }

@@ -122,7 +122,7 @@ mod progressive;
 pub use bake::bake_gltf;
 
 use crate::bounds::Obb;
-use crate::mesh::MeshError;
+use crate::mesh::{LoadLimits, MeshError};
 use crate::multires::{BuildOptions, ProgressiveMesh};
 use crate::regions::{RegionError, RegionMesh};
 use crate::skin::{SkinError, SkinRegionKind};
@@ -240,14 +240,37 @@ pub fn write(file: &MrmFile) -> Vec<u8> {
     asset::write(file)
 }
 
-/// Reads a file of assets, checking all of it (see the module docs).
+/// Reads a file of assets, checking all of it (see the module docs), within
+/// [`LoadLimits::default()`].
 ///
 /// # Errors
 /// An [`MrmError`] naming the section and byte offset of the first problem found;
 /// [`MrmError::Invalid`] for a progressive-mesh file (read it with [`read_progressive`]).
 pub fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
+    read_with_limits(bytes, &LoadLimits::default())
+}
+
+/// Reads a file of assets as [`read`] does, within `limits`: the file's bytes, its keys,
+/// each asset's vertices, triangles (over its regions) and joints, and the bytes of the
+/// regions' vertex tables (`decoded_bytes`), each checked before it is allocated.
+///
+/// # Errors
+/// As [`read`], and [`MrmError::LimitExceeded`] naming the first limit the file exceeds.
+///
+/// # Example
+/// ```
+/// use bevy_aslod::mesh::LoadLimits;
+/// use bevy_aslod::mrm::{self, MrmError};
+///
+/// let bytes = std::fs::read("assets/mannequin.mrm").unwrap();
+/// let limits = LoadLimits { joints: 10, ..LoadLimits::default() };
+/// let e = mrm::read_with_limits(&bytes, &limits).unwrap_err();
+/// assert!(matches!(e, MrmError::LimitExceeded { limit: "joints", .. }));
+/// ```
+pub fn read_with_limits(bytes: &[u8], limits: &LoadLimits) -> Result<MrmFile, MrmError> {
+    within("file_bytes", bytes.len(), limits.file_bytes)?;
     match kind(bytes)? {
-        MrmKind::Assets => asset::read(bytes),
+        MrmKind::Assets => asset::read(bytes, limits),
         MrmKind::Progressive => Err(MrmError::Invalid {
             section: "MESH".into(),
             offset: 16,
@@ -351,6 +374,28 @@ pub enum MrmError {
     /// A vertex table's attributes are inconsistent (a count, a format, a non-finite value).
     #[error("vertex attributes: {0}")]
     Attributes(String),
+    /// The file asks for more than a [`LoadLimits`] allows.
+    #[error(
+        "the file needs {value} for LoadLimits::{limit}, above its {max}; raise \
+         LoadLimits::{limit} if the file is trusted"
+    )]
+    LimitExceeded {
+        /// The limit's field name in [`LoadLimits`].
+        limit: &'static str,
+        /// What the file asks for.
+        value: u64,
+        /// The limit.
+        max: u64,
+    },
+}
+
+/// `Ok` when `value` is within limit `limit` of value `max`.
+fn within(limit: &'static str, value: usize, max: u64) -> Result<(), MrmError> {
+    let value = value as u64;
+    if value > max {
+        return Err(MrmError::LimitExceeded { limit, value, max });
+    }
+    Ok(())
 }
 
 impl MrmError {
@@ -395,13 +440,28 @@ pub fn write_progressive(mesh: &ProgressiveMesh) -> Vec<u8> {
     progressive::write(mesh)
 }
 
-/// Reads a progressive mesh from `.mrm` bytes, checking all of them (see the module docs).
+/// Reads a progressive mesh from `.mrm` bytes, checking all of them (see the module docs),
+/// within [`LoadLimits::default()`].
 ///
 /// # Errors
 /// An [`MrmError`] naming the section and byte offset of the first problem found.
 pub fn read_progressive(bytes: &[u8]) -> Result<ProgressiveMesh, MrmError> {
+    read_progressive_with_limits(bytes, &LoadLimits::default())
+}
+
+/// Reads a progressive mesh as [`read_progressive`] does, within `limits` (the file's
+/// bytes, its vertices and its triangles, checked before they are allocated).
+///
+/// # Errors
+/// As [`read_progressive`], and [`MrmError::LimitExceeded`] naming the first limit the file
+/// exceeds.
+pub fn read_progressive_with_limits(
+    bytes: &[u8],
+    limits: &LoadLimits,
+) -> Result<ProgressiveMesh, MrmError> {
+    within("file_bytes", bytes.len(), limits.file_bytes)?;
     let sections = container::read(bytes, 0, FORMAT_VERSION, &progressive::SECTIONS)?;
-    progressive::read(&sections)
+    progressive::read(&sections, limits)
 }
 
 /// The sections of a `.mrm` file (tag and length in bytes), after checking the header, the

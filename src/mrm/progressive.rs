@@ -2,7 +2,7 @@
 
 use super::container::{Reader, Section, Sections, f32s};
 use super::{FORMAT_VERSION, MrmError};
-use crate::mesh::{AttributeFormat, IndexedMesh, Scalar, VertexAttribute};
+use crate::mesh::{AttributeFormat, IndexedMesh, LoadLimits, Scalar, VertexAttribute};
 use crate::multires::ProgressiveMesh;
 use crate::multires::hierarchy::{Moved, ViewData};
 use crate::multires::records::{Corner, Header, Layout, Records, error_from_u16};
@@ -212,7 +212,10 @@ pub(super) fn section<'a>(
 }
 
 /// Reads a progressive mesh from checked sections (see [`super::container::read`]).
-pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError> {
+pub(super) fn read(
+    sections: &[Section<'_>],
+    limits: &LoadLimits,
+) -> Result<ProgressiveMesh, MrmError> {
     let mesh = section(sections, b"MESH")?;
     let mut r = Reader::new(mesh);
     let n = r.u32()? as usize;
@@ -226,6 +229,8 @@ pub(super) fn read(sections: &[Section<'_>]) -> Result<ProgressiveMesh, MrmError
         pairs: r.u32()? as usize,
     };
     r.finish()?;
+    super::within("vertices", n, limits.vertices)?;
+    super::within("triangles", counts.indices / 3, limits.triangles)?;
     let vertices = read_vertices(sections, &r, n, attributes)?;
     read_mesh(sections, &r, vertices, &counts, narrow, has_view)
 }

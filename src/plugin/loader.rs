@@ -2,9 +2,10 @@
 
 use super::asset::MultiresMesh;
 use super::error::MultiresError;
+use crate::mesh::LoadLimits;
 use crate::mrm::{self, MrmError};
 use bevy::asset::io::Reader;
-use bevy::asset::{AssetLoader, LoadContext};
+use bevy::asset::{AssetLoader, AsyncReadExt, LoadContext};
 use bevy::reflect::TypePath;
 use thiserror::Error;
 
@@ -13,8 +14,16 @@ use thiserror::Error;
 /// under its key (for a baked glTF scene, Bevy's primitive label:
 /// `"scene.mrm#Mesh0/Primitive0"`). Registered by [`AslodPlugin`](super::AslodPlugin); with
 /// Bevy's `file_watcher` feature a re-baked file reloads like any asset.
+///
+/// Files are read within [`limits`](Self::limits) (set through
+/// [`AslodPlugin::load_limits`](super::AslodPlugin::load_limits)): no more than
+/// `file_bytes` is read, and a file that asks for more keys, vertices, triangles, joints or
+/// decoded bytes fails to load with [`MrmError::LimitExceeded`] naming the limit.
 #[derive(Clone, Copy, Debug, Default, TypePath)]
-pub struct MrmLoader;
+pub struct MrmLoader {
+    /// What one file may make the loader read and allocate.
+    pub limits: LoadLimits,
+}
 
 /// Why an `.mrm` file did not load.
 #[derive(Debug, Error)]
@@ -45,9 +54,13 @@ impl AssetLoader for MrmLoader {
         _settings: &(),
         load_context: &mut LoadContext<'_>,
     ) -> Result<MultiresMesh, MrmLoadError> {
+        // One byte past the limit is enough to know a file is too long.
         let mut bytes = Vec::new();
-        reader.read_to_end(&mut bytes).await?;
-        let file = mrm::read(&bytes)?;
+        reader
+            .take(self.limits.file_bytes.saturating_add(1))
+            .read_to_end(&mut bytes)
+            .await?;
+        let file = mrm::read_with_limits(&bytes, &self.limits)?;
         let mut first = None;
         for (key, baked) in file.meshes {
             let asset = MultiresMesh::from_baked(baked)?;

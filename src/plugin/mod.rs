@@ -132,6 +132,11 @@ pub struct AslodPlugin {
     pub budget: PolygonBudget,
     /// Whether the overlay starts on.
     pub overlay: bool,
+    /// What one file or scene mesh may make the plugin read and build: the [`MrmLoader`]
+    /// reads `.mrm` files within them, and a [`MultiresScene`] mesh with more vertices,
+    /// triangles or joints than they allow stays conventional (fixed cost), with a warning
+    /// naming the limit. Default [`LoadLimits::default()`](crate::mesh::LoadLimits).
+    pub load_limits: crate::mesh::LoadLimits,
 }
 
 impl AslodPlugin {
@@ -162,12 +167,35 @@ impl AslodPlugin {
         self.overlay = on;
         self
     }
+
+    /// Sets the [`load_limits`](Self::load_limits).
+    ///
+    /// ```
+    /// use bevy_aslod::mesh::LoadLimits;
+    /// use bevy_aslod::plugin::AslodPlugin;
+    ///
+    /// // A server that bakes or shows files from untrusted sources.
+    /// let plugin = AslodPlugin::default().with_load_limits(LoadLimits {
+    ///     file_bytes: 64 << 20,
+    ///     vertices: 1_000_000,
+    ///     triangles: 1_000_000,
+    ///     ..LoadLimits::default()
+    /// });
+    /// assert_eq!(plugin.load_limits.vertices, 1_000_000);
+    /// ```
+    #[must_use]
+    pub fn with_load_limits(mut self, limits: crate::mesh::LoadLimits) -> Self {
+        self.load_limits = limits;
+        self
+    }
 }
 
 impl Plugin for AslodPlugin {
     fn build(&self, app: &mut App) {
         app.init_asset::<MultiresMesh>()
-            .register_asset_loader(MrmLoader)
+            .register_asset_loader(MrmLoader {
+                limits: self.load_limits,
+            })
             .register_type::<PolygonBudget>()
             .register_type::<FullDetail>()
             .register_type::<Geomorph>()
@@ -184,6 +212,7 @@ impl Plugin for AslodPlugin {
             .init_resource::<allocate::AllocatorScratch>()
             .init_resource::<select::SyncTime>()
             .init_resource::<scene::SceneAssetCache>()
+            .insert_resource(scene::SceneLimits(self.load_limits))
             .init_resource::<materials::MaterialsGiven>()
             .init_resource::<shared::SharedMeshes>()
             .add_observer(spawn::remove_region_meshes);

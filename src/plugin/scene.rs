@@ -5,7 +5,8 @@ use super::asset::{MultiresMesh, PartitionSpec};
 use super::components::{CountInBudget, Geomorph, MultiresModel};
 use super::error::MultiresError;
 use super::skin::MultiresSkin;
-use crate::bevy_mesh::from_bevy_mesh;
+use crate::bevy_mesh::{drawn_triangles, from_bevy_mesh};
+use crate::mesh::{IndexedMesh, LoadLimits, MeshError};
 use crate::multires::BuildOptions;
 use crate::skin::DEFAULT_RIGID_DELTA;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
@@ -118,6 +119,23 @@ pub(crate) struct SceneAssetCache {
     warned_morph: bool,
 }
 
+/// The [`AslodPlugin::load_limits`](super::AslodPlugin::load_limits) scene meshes are held to.
+#[derive(Resource, Clone, Copy, Debug, Default)]
+pub(crate) struct SceneLimits(pub(crate) LoadLimits);
+
+/// The scene's mesh, copied for the build once it is within `limits` (checked before the
+/// copy: a mesh over them stays conventional, and the build's warning names the limit).
+fn indexed_within(
+    mesh: &Mesh,
+    joints: usize,
+    limits: &LoadLimits,
+) -> Result<IndexedMesh, MeshError> {
+    LoadLimits::check("vertices", mesh.count_vertices() as u64, limits.vertices)?;
+    LoadLimits::check("triangles", drawn_triangles(mesh), limits.triangles)?;
+    LoadLimits::check("joints", joints as u64, limits.joints)?;
+    from_bevy_mesh(mesh)
+}
+
 /// What an asset is built from: the mesh, its skin, and the scene's options (δ's bits, the
 /// static partition and the build options, by their printed form), so scenes with different
 /// options do not share an asset.
@@ -152,7 +170,7 @@ enum Built {
 
 /// What one source mesh's asset is built from.
 struct BuildInputs {
-    indexed: Result<crate::mesh::IndexedMesh, crate::mesh::MeshError>,
+    indexed: Result<IndexedMesh, MeshError>,
     inverse_bindposes: Option<Vec<Mat4>>,
     /// The skin's joints' `Name`s (empty for a joint without one).
     joint_names: Vec<String>,
@@ -202,7 +220,7 @@ impl BuildInputs {
 
 /// Builds one source mesh's asset (runs on the async compute pool).
 fn build(
-    mesh: Result<crate::mesh::IndexedMesh, crate::mesh::MeshError>,
+    mesh: Result<IndexedMesh, MeshError>,
     inverse_bindposes: Option<Vec<Mat4>>,
     rigid_delta: f32,
     static_partition: PartitionSpec,
@@ -326,6 +344,7 @@ pub(crate) fn convert_scenes(
     mut cache: ResMut<SceneAssetCache>,
     server: Res<AssetServer>,
     names: Query<&'static Name>,
+    limits: Res<SceneLimits>,
 ) {
     // Apps without skinning (no `Assets<SkinnedMeshInverseBindposes>`) can still convert
     // unskinned scenes.
@@ -366,6 +385,7 @@ pub(crate) fn convert_scenes(
             bindposes: &bindposes,
             names: &names,
             server: &server,
+            limits: &limits.0,
         };
         let mut pending = false;
         for &entity in &found {
@@ -396,6 +416,7 @@ struct SceneSources<'a, 'w, 's> {
     bindposes: &'a Assets<SkinnedMeshInverseBindposes>,
     names: &'a Query<'w, 's, &'static Name>,
     server: &'a AssetServer,
+    limits: &'a LoadLimits,
 }
 
 impl SceneAssetCache {
@@ -418,7 +439,7 @@ impl SceneAssetCache {
         let built = self.built.entry(key).or_insert_with(|| {
             // The conversion copies the mesh here; the build runs on the pool.
             let inputs = BuildInputs {
-                indexed: from_bevy_mesh(mesh),
+                indexed: indexed_within(mesh, skin.map_or(0, |s| s.joints.len()), sources.limits),
                 inverse_bindposes: skin.map(|skin| {
                     sources
                         .bindposes

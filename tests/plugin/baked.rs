@@ -2,12 +2,15 @@
 //! and a glTF character whose `MultiresScene` loads its assets from the file it was baked
 //! into instead of building them (falling back to building when the file is missing).
 
-use super::skinned::app;
+use super::skinned::{app, app_with};
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::mesh::LoadLimits;
 use bevy_aslod::mrm::{self, BuildInfo, MrmFile};
 use bevy_aslod::multires::BuildOptions;
-use bevy_aslod::plugin::{MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels};
+use bevy_aslod::plugin::{
+    AslodPlugin, MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels,
+};
 use bevy_aslod::regions::Partition;
 use bevy_aslod::skin::DEFAULT_RIGID_DELTA;
 use std::path::PathBuf;
@@ -47,6 +50,17 @@ fn asset_folder(name: &str) -> PathBuf {
 /// Spawns the robot as a `MultiresScene` with `scene`, runs until it is converted and
 /// returns the handles of its models.
 fn convert(app: &mut App, scene: MultiresScene) -> Vec<Handle<MultiresMesh>> {
+    let models = scene_models(app, scene);
+    let models: Vec<Entity> = models.models().collect();
+    assert!(!models.is_empty());
+    models
+        .iter()
+        .map(|&e| app.world().get::<MultiresModel>(e).unwrap().0.clone())
+        .collect()
+}
+
+/// Spawns the robot as a `MultiresScene` with `scene` and runs until it is converted.
+fn scene_models(app: &mut App, scene: MultiresScene) -> MultiresSceneModels {
     let gltf = app
         .world()
         .resource::<AssetServer>()
@@ -58,12 +72,7 @@ fn convert(app: &mut App, scene: MultiresScene) -> Vec<Handle<MultiresMesh>> {
     for _ in 0..3_000 {
         app.update();
         if let Some(models) = app.world().get::<MultiresSceneModels>(root) {
-            let models: Vec<Entity> = models.models().collect();
-            assert!(!models.is_empty());
-            return models
-                .iter()
-                .map(|&e| app.world().get::<MultiresModel>(e).unwrap().0.clone())
-                .collect();
+            return models.clone();
         }
         std::thread::sleep(std::time::Duration::from_millis(2));
     }
@@ -194,5 +203,70 @@ fn a_rebaked_file_reloads_and_its_models_rebuild() {
         .get(&handle)
         .unwrap();
     assert_eq!(asset.region_count(), after);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn load_limits_hold_for_mrm_files_and_scene_meshes() {
+    let dir = asset_folder("limits");
+    let root = dir.to_str().unwrap();
+    let plugin = |limits| AslodPlugin::default().with_load_limits(limits);
+    let defaults = LoadLimits::default();
+
+    // The loader refuses a file with more keys than allowed, naming the limit.
+    let mut app = app_with(
+        plugin(LoadLimits {
+            keys: 1,
+            ..defaults
+        }),
+        root,
+    );
+    let handle: Handle<MultiresMesh> = app.world().resource::<AssetServer>().load("robot.mrm");
+    let mut state = String::new();
+    for _ in 0..1_000 {
+        app.update();
+        let load = app.world().resource::<AssetServer>().load_state(&handle);
+        if load.is_failed() {
+            state = format!("{load:?}");
+            break;
+        }
+        assert!(
+            !load.is_loaded(),
+            "robot.mrm loaded past a limit of one key"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    assert!(state.contains("LoadLimits::keys"), "{state}");
+
+    // Scene meshes over a limit stay conventional: skinned ones over `joints`, all over
+    // `vertices`.
+    let baseline = scene_models(
+        &mut app_with(plugin(defaults), root),
+        MultiresScene::default(),
+    );
+    assert!(!baseline.skinned.is_empty() && !baseline.rigid.is_empty());
+    let few_joints = LoadLimits {
+        joints: 1,
+        ..defaults
+    };
+    let models = scene_models(
+        &mut app_with(plugin(few_joints), root),
+        MultiresScene::default(),
+    );
+    assert!(models.skinned.is_empty());
+    assert_eq!(models.rigid.len(), baseline.rigid.len());
+    assert_eq!(
+        models.fixed.len(),
+        baseline.fixed.len() + baseline.skinned.len()
+    );
+    let few_vertices = LoadLimits {
+        vertices: 1,
+        ..defaults
+    };
+    let models = scene_models(
+        &mut app_with(plugin(few_vertices), root),
+        MultiresScene::default(),
+    );
+    assert_eq!(models.models().count(), 0);
     std::fs::remove_dir_all(&dir).ok();
 }

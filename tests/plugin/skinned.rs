@@ -27,6 +27,11 @@ const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets");
 const MANNEQUIN: &str = "mannequin.glb";
 
 pub(crate) fn app(budget: u32, root: &str) -> App {
+    app_with(AslodPlugin::default().with_budget(budget), root)
+}
+
+/// A headless app with `plugin`, loading assets from `root`.
+pub(crate) fn app_with(plugin: AslodPlugin, root: &str) -> App {
     let mut app = App::new();
     app.add_plugins((
         DefaultPlugins
@@ -49,7 +54,7 @@ pub(crate) fn app(budget: u32, root: &str) -> App {
             .disable::<WinitPlugin>(),
         ScheduleRunnerPlugin::run_once(),
     ))
-    .add_plugins(AslodPlugin::default().with_budget(budget))
+    .add_plugins(plugin)
     .insert_resource(AslodViewport(Vec2::new(1280.0, 720.0)));
     // `App::run` would do this; tests drive `update` by hand. The glTF loader registers here.
     app.finish();

@@ -1,6 +1,7 @@
 //! `aslod bake`: build multiresolution assets and write them as a `.mrm` file.
 
 use crate::{CliResult, build_with, load, parse_cut};
+use bevy_aslod::mesh::LoadLimits;
 use bevy_aslod::mrm;
 use bevy_aslod::multires::BuildOptions;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -51,7 +52,7 @@ pub(crate) fn bake(args: &BakeArgs) -> CliResult {
         );
         return Ok(());
     }
-    let source = std::fs::read(&args.input)?;
+    let source = LoadLimits::default().read_file(&args.input)?;
     let gltf = args
         .input
         .extension()

@@ -2,6 +2,7 @@
 
 use crate::bake::max_triangles;
 use crate::{CliResult, build, load};
+use bevy_aslod::mesh::LoadLimits;
 use bevy_aslod::mrm;
 use bevy_aslod::multires::indexed_mesh_bytes;
 use std::path::Path;
@@ -9,7 +10,8 @@ use std::time::Instant;
 
 /// `info` for a `.mrm` file: its sections, then what it holds (read and checked).
 fn info_mrm(input: &Path) -> CliResult {
-    let bytes = std::fs::read(input)?;
+    // The CLI reads within the default limits, as every loader does.
+    let bytes = LoadLimits::default().read_file(input)?;
     let kind = mrm::kind(&bytes)?;
     let version = u32::from_le_bytes(bytes[8..12].try_into()?);
     println!(
