@@ -31,3 +31,43 @@ fn importer_warnings_reach_stderr() {
     assert!(!run(Some("error")).contains("only some face corners"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `aslod extract` with regions: `--counts` alone gives the levels, `--error` (which regions
+/// do not take) is refused when the arguments are parsed, before anything is read.
+#[test]
+fn extract_takes_counts_alone_and_refuses_an_error_with_regions() {
+    let dir = std::env::temp_dir().join(format!("bevy_aslod_cli_counts_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cow = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/testdata/meshes/cow.obj"
+    );
+    let out = dir.join("cow.obj");
+    let extract = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_aslod"))
+            .args(["extract", cow, "-o"])
+            .arg(&out)
+            .args(["--regions", "clusters:2"])
+            .args(extra)
+            .output()
+            .expect("aslod runs")
+    };
+    let counts = extract(&["--counts", "100,200"]);
+    let said = String::from_utf8_lossy(&counts.stderr);
+    assert!(counts.status.success(), "{said}");
+    assert!(said.contains("wrote 300 triangles in 2 regions"), "{said}");
+    let error = extract(&["--error", "0.01"]);
+    assert_eq!(error.status.code(), Some(2), "a usage error");
+    let stderr = String::from_utf8_lossy(&error.stderr);
+    assert!(
+        stderr.contains("--error") && stderr.contains("--regions"),
+        "{stderr}"
+    );
+    let both = extract(&["--counts", "100,200", "--triangles", "300"]);
+    assert_eq!(
+        both.status.code(),
+        Some(2),
+        "--counts and --triangles together"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -29,15 +29,15 @@ struct Cli {
 enum Command {
     /// Write the level with at most N triangles (or the coarsest within an error, or the
     /// view-dependent level seen from an eye) as OBJ.
-    #[command(group(clap::ArgGroup::new("level").required(true).args(["triangles", "error", "eye"])))]
+    #[command(group(clap::ArgGroup::new("level").required(true).args(["triangles", "error", "eye", "counts"])))]
     Extract {
         /// Input mesh (.obj, .ply, .gltf, .glb).
         input: PathBuf,
         /// Triangle count to reach (at most).
         #[arg(long, conflicts_with = "error")]
         triangles: Option<usize>,
-        /// Error bound, relative to the bounding-box diagonal.
-        #[arg(long)]
+        /// Error bound, relative to the bounding-box diagonal (not with `--regions`).
+        #[arg(long, conflicts_with = "regions")]
         error: Option<f32>,
         /// Output OBJ file.
         #[arg(short, long)]
@@ -46,9 +46,14 @@ enum Command {
         /// Each region's triangles go into an OBJ group of their own.
         #[arg(long)]
         regions: Option<String>,
-        /// Triangle count of each region, in region order (default: `--triangles` spread
+        /// Triangle count of each region, in region order (instead of `--triangles` spread
         /// evenly over the regions).
-        #[arg(long, value_delimiter = ',', requires = "regions")]
+        #[arg(
+            long,
+            value_delimiter = ',',
+            requires = "regions",
+            conflicts_with = "triangles"
+        )]
         counts: Option<Vec<usize>>,
         #[command(flatten)]
         view: ViewArgs,
@@ -127,7 +132,6 @@ fn main() -> ExitCode {
             triangles,
             output,
             regions: Some(spec),
-            error: _,
             counts,
             ..
         } => extract::extract_regions(&input, &spec, triangles, counts, &output).map(|_| ()),
