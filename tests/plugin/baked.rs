@@ -226,8 +226,8 @@ fn load_limits_hold_for_mrm_files_and_scene_meshes() {
     for _ in 0..1_000 {
         app.update();
         let load = app.world().resource::<AssetServer>().load_state(&handle);
-        if load.is_failed() {
-            state = format!("{load:?}");
+        if let bevy::asset::LoadState::Failed(e) = load {
+            state = e.to_string();
             break;
         }
         assert!(
