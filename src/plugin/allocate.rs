@@ -9,6 +9,7 @@ use super::tasks::{ComputePool, par_chunks};
 use super::view_dependent::ViewDependentState;
 use crate::bounds::Obb;
 use crate::budget::{Allocator, ProjectedAreaCamera, RegionInput};
+use bevy::camera::visibility::RenderLayers;
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::query::QueryItem;
 use bevy::ecs::system::NonSendMarker;
@@ -58,6 +59,7 @@ type ModelQuery = (
     &'static GlobalTransform,
     Option<&'static LodPriority>,
     Option<&'static ViewDependentState>,
+    Option<&'static RenderLayers>,
 );
 
 /// One model in `Allocate`.
@@ -97,7 +99,7 @@ pub(crate) fn allocate(
     let view_dependent = fill_inputs(
         &mut items,
         &mut scratch.inputs,
-        &cameras.active,
+        &cameras,
         full_detail.0,
         frame.serial,
     );
@@ -148,7 +150,7 @@ pub(crate) fn allocate(
 fn fill_inputs(
     items: &mut [ModelItem],
     inputs: &mut Vec<RegionInput>,
-    cameras: &[ProjectedAreaCamera],
+    cameras: &FrameCameras,
     full_detail: bool,
     serial: u64,
 ) -> u64 {
@@ -167,7 +169,7 @@ fn fill_inputs(
     let fill = |chunk: &mut [(&mut ModelItem, usize, &mut [RegionInput])]| {
         let mut scratch = AreaScratch::default();
         let mut fixed = 0u64;
-        for ((instance, slot, transform, priority, view_dependent), first, out) in chunk {
+        for ((instance, slot, transform, priority, view_dependent, layers), first, out) in chunk {
             **slot = AllocationSlot {
                 allocation: serial,
                 first: *first,
@@ -184,6 +186,7 @@ fn fill_inputs(
                         instance,
                         transform,
                         priority: c,
+                        layers: *layers,
                     };
                     model.fill(cameras, full_detail, &mut scratch, out);
                 }
@@ -203,6 +206,29 @@ fn input_len(item: &ModelItem) -> usize {
     }
 }
 
+/// The cameras that draw a model on `layers`, and their weights: all of the frame's active
+/// cameras as they are when they are plain and the model has no layers, else those whose
+/// layers meet the model's, gathered into `seen` and `weights`.
+fn cameras_drawing<'a>(
+    frame: &'a FrameCameras,
+    layers: Option<&RenderLayers>,
+    seen: &'a mut Vec<ProjectedAreaCamera>,
+    weights: &'a mut Vec<f32>,
+) -> (&'a [ProjectedAreaCamera], Option<&'a [f32]>) {
+    if frame.plain && layers.is_none() {
+        return (&frame.active, None);
+    }
+    seen.clear();
+    weights.clear();
+    for (camera, share) in frame.active.iter().zip(&frame.shares) {
+        if share.sees(layers) {
+            seen.push(*camera);
+            weights.push(share.weight);
+        }
+    }
+    (seen, Some(weights))
+}
+
 /// The user priority `c` of a model (see [`LodPriority`]).
 fn priority_of(priority: Option<&LodPriority>) -> f32 {
     priority
@@ -219,6 +245,9 @@ struct AreaScratch {
     /// The largest area of each region over the cameras so far, and one camera's areas.
     areas: Vec<f32>,
     one: Vec<f32>,
+    /// The cameras that draw the model and their weights, when not all of them at 1.
+    seen: Vec<ProjectedAreaCamera>,
+    weights: Vec<f32>,
 }
 
 /// A region model as `Allocate` weighs it.
@@ -227,21 +256,32 @@ struct ModelInputs<'a> {
     transform: &'a GlobalTransform,
     /// Its priority `c`.
     priority: f32,
+    /// Its render layers (none: the default layer).
+    layers: Option<&'a RenderLayers>,
 }
 
 impl ModelInputs<'_> {
-    /// The model's [`RegionInput`]s: each region's box, its largest projected area over the
-    /// cameras (skipped without LOD, which does not use it), the model's priority. Unskinned
+    /// The model's [`RegionInput`]s: each region's box, its largest weighted projected area
+    /// over the cameras that draw its layers (skipped without LOD, which does not use it), the
+    /// model's priority. Unskinned
     /// boxes stay in the model's space and the cameras move into it (four boxes at a time,
     /// see [`ProjectedAreaCamera::projected_areas`]); skinned ones are already in the world.
     fn fill(
         &self,
-        cameras: &[ProjectedAreaCamera],
+        frame: &FrameCameras,
         full_detail: bool,
         scratch: &mut AreaScratch,
         out: &mut [RegionInput],
     ) {
-        let AreaScratch { local, areas, one } = scratch;
+        let AreaScratch {
+            local,
+            areas,
+            one,
+            seen,
+            weights,
+        } = scratch;
+        let (cameras, weights) = cameras_drawing(frame, self.layers, seen, weights);
+        let weight = |k: usize| weights.map_or(1.0, |w| w[k]);
         let instance = self.instance;
         let affine = self.transform.affine();
         let skinned = instance.skinned_world_boxes();
@@ -261,17 +301,19 @@ impl ModelInputs<'_> {
         };
         let max_area = |cams: &[ProjectedAreaCamera], obb: &Obb| {
             cams.iter()
-                .map(|cam| cam.projected_area(obb))
+                .enumerate()
+                .map(|(k, cam)| cam.projected_area(obb) * weight(k))
                 .fold(0.0f32, f32::max)
         };
         if in_model {
             areas.clear();
             areas.resize(instance.obbs.len(), 0.0);
             one.resize(instance.obbs.len(), 0.0);
-            for camera in local.iter() {
+            for (k, camera) in local.iter().enumerate() {
                 camera.projected_areas(&instance.obbs, one);
+                let w = weight(k);
                 for (max, &area) in areas.iter_mut().zip(one.iter()) {
-                    *max = max.max(area);
+                    *max = max.max(area * w);
                 }
             }
         }

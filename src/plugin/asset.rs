@@ -15,7 +15,7 @@ use glam::{Mat4, Vec3};
 use std::sync::Arc;
 
 /// How to cut a mesh into regions for [`MultiresMesh::from_bevy_mesh`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PartitionSpec {
     /// One region: the whole mesh changes detail as one.
     Single,

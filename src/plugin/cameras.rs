@@ -3,6 +3,7 @@
 
 use super::components::{AslodStats, AslodViewport, PolygonBudget};
 use crate::budget::ProjectedAreaCamera;
+use bevy::camera::visibility::RenderLayers;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
@@ -13,8 +14,49 @@ use bevy::prelude::*;
 /// else of the first active camera; its projection is its own, so set its aspect ratio. Without one, each model refines for the active 3D camera
 /// that sees its bounds largest, so in split screen every model is as fine as its nearest
 /// view needs; a view that sees it smaller gets the same mesh.
-#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
 pub struct RefineCamera;
+
+/// A camera marked with this takes no part in the budget split: a minimap, a
+/// render-to-texture or a debug camera draws the levels the other cameras chose. (With
+/// [`RefineCamera`] too, view-dependent models still refine for it.)
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
+pub struct NoLodAllocation;
+
+/// The weight of a camera's view in the budget split (default `1`): each region weighs the
+/// largest of `weight × its projected area` over the cameras. A picture-in-picture view
+/// might take `0.25`. A negative or non-finite weight counts as `0` (the camera then asks
+/// for nothing), with a warning.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Default)]
+pub struct LodCameraWeight(pub f32);
+
+impl Default for LodCameraWeight {
+    fn default() -> Self {
+        Self(1.0)
+    }
+}
+
+/// What the split needs to know of an active camera besides its projection.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct CameraShare {
+    /// Its render layers: it weighs only the models on a layer it renders.
+    pub(crate) layers: RenderLayers,
+    /// Its [`LodCameraWeight`].
+    pub(crate) weight: f32,
+}
+
+impl CameraShare {
+    /// Whether a model on `layers` (none: the default layer) is drawn by this camera.
+    pub(crate) fn sees(&self, layers: Option<&RenderLayers>) -> bool {
+        match layers {
+            Some(layers) => self.layers.intersects(layers),
+            None => self.layers.intersects(&RenderLayers::default()),
+        }
+    }
+}
 
 /// This frame's cameras, gathered at the start of `Allocate`.
 #[derive(Resource, Default)]
@@ -24,12 +66,17 @@ pub(crate) struct FrameCameras {
     pub(crate) ms: f64,
     /// The active cameras' projected areas: the allocation weighs regions by what these see.
     pub(crate) active: Vec<ProjectedAreaCamera>,
+    /// Each active camera's layers and weight, by `active`'s index.
+    pub(crate) shares: Vec<CameraShare>,
+    /// Whether every active camera renders the default layer and nothing else, at weight 1
+    /// (then a model without layers is weighed by all of them as they are).
+    pub(crate) plain: bool,
     /// The cameras view-dependent models may refine for.
     pub(crate) views: Vec<CameraView>,
 }
 
 /// A camera a view-dependent model may refine for.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub(crate) struct CameraView {
     pub(crate) entity: Entity,
     pub(crate) clip_from_world: Mat4,
@@ -41,6 +88,8 @@ pub(crate) struct CameraView {
     pub(crate) active: bool,
     /// Marked [`RefineCamera`].
     pub(crate) marked: bool,
+    /// Its layers and weight (weight `0` for one that is not active).
+    pub(crate) share: CameraShare,
 }
 
 /// The viewport of a camera in pixels: its own, else [`AslodViewport`].
@@ -52,41 +101,63 @@ fn viewport_size(camera: &Camera, fallback: Option<&AslodViewport>) -> Option<Ve
         .or(fallback.map(|v| v.0))
 }
 
-/// Gathers the frame's cameras: every active 3D camera with a viewport, and the
-/// [`RefineCamera`]s, active or not.
-#[allow(clippy::type_complexity)]
+/// A camera as [`gather_cameras`] reads it.
+type CameraItem = (
+    Entity,
+    &'static Camera,
+    &'static GlobalTransform,
+    &'static Projection,
+    Has<RefineCamera>,
+    Has<NoLodAllocation>,
+    Option<&'static LodCameraWeight>,
+    Option<&'static RenderLayers>,
+);
+
+/// Gathers the frame's cameras: every active 3D camera with a viewport that is not marked
+/// [`NoLodAllocation`], and the [`RefineCamera`]s, active or not.
 pub(crate) fn gather_cameras(
     budget: Res<PolygonBudget>,
     viewport: Option<Res<AslodViewport>>,
-    cameras: Query<
-        (
-            Entity,
-            &Camera,
-            &GlobalTransform,
-            &Projection,
-            Has<RefineCamera>,
-        ),
-        With<Camera3d>,
-    >,
+    cameras: Query<CameraItem, With<Camera3d>>,
     mut frame: ResMut<FrameCameras>,
     mut stats: ResMut<AslodStats>,
+    mut warned: Local<bool>,
 ) {
     let start = Instant::now();
     let frame = &mut *frame;
     stats.allocated = false;
     stats.budget = budget.total;
     frame.active.clear();
+    frame.shares.clear();
     frame.views.clear();
+    frame.plain = true;
     // A phantom `RefineCamera` with no render target of its own refines for the viewport of
     // the first active camera.
     let active_size = cameras
         .iter()
         .filter(|c| c.1.is_active)
         .find_map(|c| viewport_size(c.1, viewport.as_deref()));
-    for (entity, camera, transform, projection, marked) in &cameras {
-        if !camera.is_active && !marked {
+    for (entity, camera, transform, projection, marked, opted_out, weight, layers) in &cameras {
+        // Counts in the split: renders, and not opted out.
+        let counts = camera.is_active && !opted_out;
+        if !counts && !marked {
             continue;
         }
+        let weight = weight.map_or(1.0, |w| w.0);
+        let weight = if weight.is_finite() && weight >= 0.0 {
+            weight
+        } else {
+            if !std::mem::replace(&mut *warned, true) {
+                warn!(
+                    "LodCameraWeight {weight} of camera {entity} is not a finite weight ≥ 0: it counts as 0"
+                );
+            }
+            0.0
+        };
+        let share = CameraShare {
+            layers: layers.cloned().unwrap_or_default(),
+            weight: if counts { weight } else { 0.0 },
+        };
         let size = viewport_size(camera, viewport.as_deref())
             .or(active_size.filter(|_| marked && !camera.is_active));
         let Some(size) = size else {
@@ -109,18 +180,19 @@ pub(crate) fn gather_cameras(
                 None
             }
         };
-        if camera.is_active
-            && let Some(c) = projector
-        {
+        if counts && let Some(c) = projector {
+            frame.plain &= share.weight == 1.0 && share.layers == RenderLayers::default();
             frame.active.push(c);
+            frame.shares.push(share.clone());
         }
         frame.views.push(CameraView {
             entity,
             clip_from_world: clip_from_view * transform.to_matrix().inverse(),
             height: size.y,
             projector,
-            active: camera.is_active,
+            active: counts,
             marked,
+            share,
         });
     }
     stats.cameras = frame.active.len();

@@ -61,7 +61,7 @@ pub struct FullDetail(pub bool);
 /// The user priority `c` of a model: its regions weigh `c · A`. Without it `c = 1`; `0`
 /// keeps the model at its coarsest level. Negative or non-finite values count as `0`.
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
-#[reflect(Component)]
+#[reflect(Component, Default)]
 pub struct LodPriority(pub f32);
 
 impl Default for LodPriority {
@@ -74,10 +74,11 @@ impl Default for LodPriority {
 /// Put it next to a `MeshMaterial3d<StandardMaterial>` (or of another material with a
 /// [`MultiresMaterialPlugin`](super::MultiresMaterialPlugin)) and a `Transform`.
 ///
-/// The children are made once, when the asset is loaded, with the material the model has
-/// then; changing the handle or the material later does not rebuild them: despawn the model
-/// and spawn it again.
-#[derive(Component, Clone, Debug, PartialEq, Eq)]
+/// The children are made when the asset is loaded, with the material the model has then.
+/// Giving it another handle rebuilds them from the new asset once that is loaded (as a
+/// `Mesh3d` given another mesh draws it); so does a hot-reloaded asset.
+#[derive(Component, Reflect, Clone, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
 #[require(Transform, Visibility)]
 pub struct MultiresModel(pub Handle<MultiresMesh>);
 
@@ -118,8 +119,8 @@ impl Default for Geomorph {
 }
 
 /// A region child of a [`MultiresModel`]: which region of the mesh its `Mesh3d` shows.
-#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq, Eq)]
-#[reflect(Component)]
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
 pub struct LodRegion {
     /// Index into the mesh's regions.
     pub region: usize,
@@ -128,29 +129,40 @@ pub struct LodRegion {
 /// A conventional (not multiresolution) `Mesh3d` whose triangles count against the budget
 /// as fixed cost: `P' = P − Σ its triangles`.
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[reflect(Component)]
+#[reflect(Component, Default)]
 pub struct CountInBudget;
 
 /// The child that draws a [`ViewDependent`](super::ViewDependent) model's variable-resolution
 /// level (the plugin spawns it), as [`LodRegion`] marks the children that draw its regions.
-#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
 pub struct ViewDependentLevel;
 
 /// The viewport size in pixels for cameras whose size is not known yet (no render target,
 /// as in a headless test, or the first frame). A camera with a known viewport
 /// (`Camera::physical_viewport_size`) uses its own. Without this resource such cameras are
 /// skipped; with no usable camera, allocation does nothing that frame.
-#[derive(Resource, Clone, Copy, Debug, PartialEq)]
+/// Its default is 1280×720.
+#[derive(Resource, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Resource, Default)]
 pub struct AslodViewport(pub Vec2);
+
+impl Default for AslodViewport {
+    fn default() -> Self {
+        Self(Vec2::new(1280.0, 720.0))
+    }
+}
 
 /// Whether the debug overlay is on (ASLOD Figure 10): each region's world box, coloured from
 /// blue (coarsest) to red (full detail), and its triangle count as a label ([`OverlayLabel`](super::OverlayLabel)
 /// UI nodes, at most [`MAX_OVERLAY_LABELS`](super::MAX_OVERLAY_LABELS)). Needs `GizmoPlugin`, part of `DefaultPlugins`.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Resource, Default)]
 pub struct AslodOverlay(pub bool);
 
 /// What the plugin did in the last frame; also published as diagnostics ([`diagnostics`](super::diagnostics)).
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq)]
+#[reflect(Resource, Default)]
 pub struct AslodStats {
     /// Triangles of all region instances after `SelectLod`.
     pub triangles: u64,

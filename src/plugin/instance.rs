@@ -23,6 +23,9 @@ use std::sync::Arc;
 /// plugin's systems change it.
 #[derive(Component, Debug)]
 pub struct MultiresInstance {
+    /// The asset it was built from (a [`MultiresModel`](super::MultiresModel) given another
+    /// handle is rebuilt).
+    pub(super) asset: AssetId<super::asset::MultiresMesh>,
     pub(super) regions: Arc<RegionMesh>,
     pub(super) obbs: Arc<[Obb]>,
     /// A box around every region's box, in the model's space: a model whose box is out of

@@ -18,6 +18,9 @@
 //! | [`CountInBudget`] | a conventional `Mesh3d` entity | its triangles are fixed cost |
 //! | [`ViewDependent`] | model root (optional) | refine the model per frame as one variable-resolution mesh instead of by regions |
 //! | [`RefineCamera`] | a camera (optional) | the camera view-dependent models refine for |
+//! | [`NoLodAllocation`] | a camera (optional) | the camera takes no part in the budget split |
+//! | [`LodCameraWeight`] | a camera (optional) | the weight of its view in the split; default `1` |
+//! | `RenderLayers` | model root, camera (optional) | a camera weighs only the models it draws; the model's layers go to its regions |
 //! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε |
 //! | [`AslodViewport`] | resource (optional) | viewport size for cameras without a known one |
 //! | [`AslodOverlay`] | resource | draws every region's world box with gizmos |
@@ -63,6 +66,7 @@ mod geomorph;
 mod instance;
 mod loader;
 mod materials;
+mod messages;
 mod overlay;
 mod render;
 mod scene;
@@ -76,7 +80,7 @@ mod upload;
 mod view_dependent;
 
 pub use asset::{MultiresMesh, PartitionSpec};
-pub use cameras::RefineCamera;
+pub use cameras::{LodCameraWeight, NoLodAllocation, RefineCamera};
 /// [`ViewDependentLevel`] under the name of what it draws, a variable-resolution level.
 pub use components::ViewDependentLevel as VariableLevel;
 pub use components::{
@@ -92,6 +96,7 @@ pub use geomorph::{
 pub use instance::{MultiresInstance, Refinement};
 pub use loader::{MrmLoadError, MrmLoader};
 pub use materials::MultiresMaterialPlugin;
+pub use messages::{MultiresBuildFailed, MultiresModelReady, MultiresSceneConverted};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
 pub use render::{RegionUpload, RegionUploadStats};
 pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
@@ -198,9 +203,31 @@ impl Plugin for AslodPlugin {
             })
             .register_type::<PolygonBudget>()
             .register_type::<FullDetail>()
-            .register_type::<Geomorph>()
-            .register_type::<SharedLevels>()
+            .register_type::<AslodOverlay>()
+            .register_type::<AslodStats>()
+            .register_type::<AslodViewport>()
             .register_type::<RegionUpload>()
+            .register_type::<RegionUploadStats>()
+            .register_type::<MultiresModel>()
+            .register_type::<LodPriority>()
+            .register_type::<LodRegion>()
+            .register_type::<CountInBudget>()
+            .register_type::<VariableLevel>()
+            .register_type::<Geomorph>()
+            .register_type::<GpuGeomorph>()
+            .register_type::<SharedLevels>()
+            .register_type::<ViewDependent>()
+            .register_type::<RefineCamera>()
+            .register_type::<NoLodAllocation>()
+            .register_type::<LodCameraWeight>()
+            .register_type::<MultiresScene>()
+            .register_type::<MultiresSceneModels>()
+            .register_type::<MultiresSourceMesh>()
+            .register_type::<MultiresSkin>()
+            .register_type::<OverlayLabel>()
+            .add_message::<MultiresModelReady>()
+            .add_message::<MultiresBuildFailed>()
+            .add_message::<MultiresSceneConverted>()
             .init_resource::<RegionUpload>()
             .init_resource::<render::RenderWrites>()
             .insert_resource(self.budget.clone())
@@ -248,9 +275,12 @@ impl Plugin for AslodPlugin {
                     scene::convert_scenes,
                     shared::forget_dropped,
                     spawn::mark_modified,
+                    spawn::mark_handle_changed,
                     spawn::mark_shared_changed,
                     spawn::spawn_regions,
+                    spawn::report_failed_loads,
                     spawn::sync_view_dependent,
+                    spawn::sync_render_layers,
                 )
                     .chain()
                     .in_set(AslodSystems::Spawn),

@@ -30,7 +30,8 @@ pub(super) fn add_if_gizmos(app: &mut App) {
 }
 
 /// A UI text node of the overlay that shows one region's triangle count.
-#[derive(Component, Debug, Default)]
+#[derive(Component, Reflect, Debug, Default)]
+#[reflect(Component, Default)]
 pub struct OverlayLabel;
 
 /// The 12 edges of a box, as corner pairs in [`Obb::corner`](crate::bounds::Obb::corner)'s

@@ -175,7 +175,8 @@ pub(crate) struct RenderWrites {
 /// What the plugin wrote to the GPU for region meshes in the last rendered frame (a resource
 /// of the render world, reset each frame). Bevy's own uploads (new meshes, meshes changed
 /// through `Assets::get_mut`) are not counted here.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq)]
+#[reflect(Resource, Default)]
 pub struct RegionUploadStats {
     /// Milliseconds the render world spent on the writes (allocation, staging, copies).
     pub write_ms: f64,

@@ -4,6 +4,7 @@
 use super::asset::{MultiresMesh, PartitionSpec};
 use super::components::{CountInBudget, Geomorph, MultiresModel};
 use super::error::MultiresError;
+use super::messages::{MultiresBuildFailed, MultiresSceneConverted};
 use super::skin::MultiresSkin;
 use crate::bevy_mesh::{drawn_triangles, from_bevy_mesh};
 use crate::mesh::{IndexedMesh, LoadLimits, MeshError};
@@ -43,7 +44,8 @@ use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
 /// does not fit (a skinned entry with another joint count than the mesh's skin, or a skinned
 /// entry for an unskinned mesh, or joints named otherwise than the skin's joint entities'
 /// `Name`s) is built as without a baked file, with a warning.
-#[derive(Component, Clone, Debug, PartialEq)]
+#[derive(Component, Reflect, Clone, Debug, PartialEq)]
+#[reflect(Component, Default)]
 pub struct MultiresScene {
     /// δ: a skinned vertex whose dominant weight is at least `1 − δ` is rigid. Default
     /// [`DEFAULT_RIGID_DELTA`], so imported skinning stays exact.
@@ -51,7 +53,8 @@ pub struct MultiresScene {
     /// How unskinned meshes are cut into regions. Default [`PartitionSpec::Single`].
     pub static_partition: PartitionSpec,
     /// How unskinned meshes are built (attribute weights, local weight, …). Skinned meshes
-    /// build with the default options. Default: `BuildOptions::default()`.
+    /// build with the default options. Default: `BuildOptions::default()`. (Not reflected.)
+    #[reflect(ignore)]
     pub build_options: BuildOptions,
     /// The asset path of an `.mrm` file baked from this scene's glTF, to load instead of
     /// building. Default `None`. (Its own δ and partition apply, not the two above.)
@@ -86,7 +89,8 @@ impl MultiresScene {
 }
 
 /// What the plugin made of a [`MultiresScene`].
-#[derive(Component, Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Component, Reflect, Clone, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
 pub struct MultiresSceneModels {
     /// Model roots of the skinned meshes (children of the original mesh entities).
     pub skinned: Vec<Entity>,
@@ -106,7 +110,8 @@ impl MultiresSceneModels {
 }
 
 /// The mesh an entity showed before it became multiresolution (kept, not dropped).
-#[derive(Component, Clone, Debug, PartialEq, Eq)]
+#[derive(Component, Reflect, Clone, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
 pub struct MultiresSourceMesh(pub Handle<Mesh>);
 
 /// Built assets by source mesh (and skin), shared by every scene instance. A built asset is
@@ -165,7 +170,8 @@ enum Built {
     /// Built: the asset, its vertices with more than two influences, and the handle that
     /// keeps it until a scene's models hold it.
     Ok(AssetId<MultiresMesh>, usize, Option<Handle<MultiresMesh>>),
-    Failed,
+    /// The build failed, for this reason.
+    Failed(String),
 }
 
 /// What one source mesh's asset is built from.
@@ -269,7 +275,9 @@ impl SceneAssetCache {
                 if asset.is_none() && !failed {
                     continue;
                 }
-                let Built::Loading(handle, inputs) = std::mem::replace(built, Built::Failed) else {
+                let Built::Loading(handle, inputs) =
+                    std::mem::replace(built, Built::Failed(String::new()))
+                else {
                     continue;
                 };
                 let path = handle.path().map(ToString::to_string).unwrap_or_default();
@@ -311,7 +319,7 @@ impl SceneAssetCache {
                 }
                 Err(e) => {
                     warn!("a mesh stays conventional (fixed cost): {e}");
-                    Built::Failed
+                    Built::Failed(e.to_string())
                 }
             };
         }
@@ -345,6 +353,7 @@ pub(crate) fn convert_scenes(
     server: Res<AssetServer>,
     names: Query<&'static Name>,
     limits: Res<SceneLimits>,
+    mut messages: SceneMessages,
 ) {
     // Apps without skinning (no `Assets<SkinnedMeshInverseBindposes>`) can still convert
     // unskinned scenes.
@@ -405,9 +414,21 @@ pub(crate) fn convert_scenes(
             &mut multires,
             geomorph,
             options,
+            &mut messages.failed,
         );
+        messages.converted.write(MultiresSceneConverted {
+            scene: root,
+            models: result.clone(),
+        });
         commands.entity(root).insert(result);
     }
+}
+
+/// The messages `convert_scenes` writes.
+#[derive(bevy::ecs::system::SystemParam)]
+pub(crate) struct SceneMessages<'w> {
+    failed: MessageWriter<'w, MultiresBuildFailed>,
+    converted: MessageWriter<'w, MultiresSceneConverted>,
 }
 
 /// What a scene's builds are started from.
@@ -486,6 +507,7 @@ impl SceneAssetCache {
         multires: &mut Assets<MultiresMesh>,
         geomorph: Option<&Geomorph>,
         options: &MultiresScene,
+        failed: &mut MessageWriter<MultiresBuildFailed>,
     ) -> MultiresSceneModels {
         let mut result = MultiresSceneModels::default();
         for &entity in found {
@@ -515,6 +537,11 @@ impl SceneAssetCache {
                 _ => None,
             };
             let Some((handle, more_than_two)) = built else {
+                let error = match self.built.get(&key) {
+                    Some(Built::Failed(e)) => e.clone(),
+                    _ => "its asset is gone".to_owned(),
+                };
+                failed.write(MultiresBuildFailed { entity, error });
                 commands.entity(entity).insert(CountInBudget);
                 result.fixed.push(entity);
                 continue;

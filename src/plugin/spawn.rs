@@ -9,6 +9,7 @@ use super::asset::MultiresMesh;
 use super::components::{LodRegion, MultiresModel, ViewDependentLevel};
 use super::geomorph::RegionGeomorphs;
 use super::instance::{AllocationSlot, MultiresInstance, Rebuild, RegionStaging};
+use super::messages::{MultiresBuildFailed, MultiresModelReady};
 use super::shared::{SharedLevels, SharedMeshes, SharedState};
 use super::skin::binding::SkinBinding;
 use super::skin::{MultiresSkin, SkinState, initial_region_mesh};
@@ -18,8 +19,9 @@ use crate::mesh::IndexedMesh;
 use crate::regions::{RegionCaches, RegionMesh};
 use crate::skin::SkinRegionKind;
 use bevy::camera::primitives::{Aabb, MeshAabb};
+use bevy::camera::visibility::RenderLayers;
 use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
-use bevy::ecs::entity::EntityHashSet;
+use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
 use bevy::mesh::Indices;
 use bevy::prelude::*;
 
@@ -57,6 +59,7 @@ pub(super) fn spawn_regions(
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut shared_meshes: ResMut<SharedMeshes>,
+    mut ready: MessageWriter<MultiresModelReady>,
 ) {
     for (entity, model, joints, shared, rebuild) in &models {
         let asset = assets.get(&model.0);
@@ -126,7 +129,9 @@ pub(super) fn spawn_regions(
             .map(|r| r.min_triangles() as u32)
             .collect();
         let staging = RegionStaging::new(&regions);
+        let model_asset = model.0.id();
         let instance = MultiresInstance {
+            asset: model_asset,
             caches: RegionCaches::new(&regions),
             bounds: asset.bounds(),
             obbs: asset.obbs().clone(),
@@ -147,6 +152,34 @@ pub(super) fn spawn_regions(
         };
         if let Some(shared) = shared {
             model.insert(shared);
+        }
+        ready.write(MultiresModelReady {
+            model: entity,
+            asset: model_asset,
+        });
+    }
+}
+
+/// Writes a [`MultiresBuildFailed`] for each model whose asset failed to load (once per
+/// model and asset).
+pub(super) fn report_failed_loads(
+    models: Query<(Entity, &MultiresModel), Without<MultiresInstance>>,
+    server: Res<AssetServer>,
+    mut reported: Local<EntityHashMap<AssetId<MultiresMesh>>>,
+    mut failed: MessageWriter<MultiresBuildFailed>,
+) {
+    reported.retain(|entity, _| models.contains(*entity));
+    for (entity, model) in &models {
+        let id = model.0.id();
+        if reported.get(&entity) == Some(&id) {
+            continue;
+        }
+        if let bevy::asset::LoadState::Failed(error) = server.load_state(id) {
+            reported.insert(entity, id);
+            failed.write(MultiresBuildFailed {
+                entity,
+                error: error.to_string(),
+            });
         }
     }
 }
@@ -286,6 +319,20 @@ pub(super) fn mark_modified(
     }
 }
 
+/// Every model whose [`MultiresModel`] handle changed to another asset is marked
+/// [`Rebuild`], as a `Mesh3d` given another mesh draws it: its old regions go, and the new
+/// asset's come once it is loaded.
+pub(super) fn mark_handle_changed(
+    mut commands: Commands,
+    models: Query<(Entity, &MultiresModel, &MultiresInstance), Changed<MultiresModel>>,
+) {
+    for (entity, model, instance) in &models {
+        if model.0.id() != instance.asset {
+            commands.entity(entity).insert(Rebuild);
+        }
+    }
+}
+
 /// Every model whose [`SharedLevels`] came, changed or went is marked [`Rebuild`]: its
 /// regions move between their own meshes and the shared ones.
 #[allow(clippy::type_complexity)]
@@ -390,6 +437,46 @@ pub(super) fn sync_view_dependent(
                     ViewDependentState::new(variable, child, handle, narrow, (*settings).clone());
                 instance.level = Some(state.summary());
                 commands.entity(entity).insert(state);
+            }
+        }
+    }
+}
+
+/// A model's `RenderLayers` go to the entities that draw it (its regions, under it or under
+/// joints, and its view-dependent level), when they are made and whenever the model's
+/// layers change or go: they draw for the cameras the model is meant for.
+#[allow(clippy::type_complexity)]
+pub(super) fn sync_render_layers(
+    mut commands: Commands,
+    models: Query<
+        (
+            &MultiresInstance,
+            Option<&RenderLayers>,
+            Option<&ViewDependentState>,
+        ),
+        Or<(
+            Changed<RenderLayers>,
+            Added<MultiresInstance>,
+            Added<ViewDependentState>,
+        )>,
+    >,
+    mut removed: RemovedComponents<RenderLayers>,
+    all: Query<(&MultiresInstance, Option<&ViewDependentState>), Without<RenderLayers>>,
+) {
+    let drawn_by = |instance: &MultiresInstance, state: Option<&ViewDependentState>| {
+        let level = state.map(|s| s.entity);
+        instance.region_entities.clone().into_iter().chain(level)
+    };
+    for (instance, layers, state) in &models {
+        let Some(layers) = layers else { continue };
+        for entity in drawn_by(instance, state) {
+            commands.entity(entity).try_insert(layers.clone());
+        }
+    }
+    for model in removed.read() {
+        if let Ok((instance, state)) = all.get(model) {
+            for entity in drawn_by(instance, state) {
+                commands.entity(entity).try_remove::<RenderLayers>();
             }
         }
     }

@@ -19,6 +19,7 @@ use crate::refine::{
     VariableMesh, View,
 };
 use bevy::asset::AssetId;
+use bevy::camera::visibility::RenderLayers;
 use bevy::ecs::system::NonSendMarker;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
@@ -53,7 +54,8 @@ use std::sync::Arc;
 /// let settings = ViewDependent::default().with_tolerance_px(Some(0.5));
 /// assert!(settings.budgeted);
 /// ```
-#[derive(Component, Clone, Debug, PartialEq)]
+#[derive(Component, Reflect, Clone, Debug, PartialEq)]
+#[reflect(Component, Default)]
 #[non_exhaustive]
 pub struct ViewDependent {
     /// The screen-space tolerance in pixels (see the table). A NaN, infinite or negative
@@ -61,7 +63,9 @@ pub struct ViewDependent {
     pub tolerance_px: Option<f32>,
     /// Whether the model takes part in the budget allocation. Default: `true`.
     pub budgeted: bool,
-    /// The criteria besides the screen-space error. Default: frustum and back faces.
+    /// The criteria besides the screen-space error. Default: frustum and back faces. (Not
+    /// reflected: an inspector shows the two fields above.)
+    #[reflect(ignore)]
     pub criteria: Criteria,
 }
 
@@ -165,7 +169,12 @@ struct LevelMorph {
 pub(crate) fn aim_view_dependent(
     mut cameras: ResMut<FrameCameras>,
     full_detail: Res<FullDetail>,
-    mut models: Query<(&mut ViewDependentState, &MultiresInstance, &GlobalTransform)>,
+    mut models: Query<(
+        &mut ViewDependentState,
+        &MultiresInstance,
+        &GlobalTransform,
+        Option<&RenderLayers>,
+    )>,
     _main_thread: NonSendMarker,
 ) {
     if cameras.active.is_empty() || models.is_empty() {
@@ -175,8 +184,8 @@ pub(crate) fn aim_view_dependent(
     let mut items: Vec<_> = models.iter_mut().collect();
     let views = &cameras.views;
     par_chunks(&mut items, |chunk| {
-        for (state, instance, transform) in chunk {
-            state.aim(&instance.bounds, transform, views, full_detail.0);
+        for (state, instance, transform, layers) in chunk {
+            state.aim(&instance.bounds, transform, *layers, views, full_detail.0);
             if !state.settings.budgeted {
                 state.select();
             }
@@ -255,6 +264,7 @@ impl ViewDependentState {
         &mut self,
         bounds: &Obb,
         transform: &GlobalTransform,
+        layers: Option<&RenderLayers>,
         views: &[CameraView],
         full_detail: bool,
     ) {
@@ -268,12 +278,19 @@ impl ViewDependentState {
             if a.is_finite() { a } else { 0.0 }
         };
         let marked = views.iter().find(|v| v.marked);
-        // What each camera that counts sees of it: the active ones and the marked one.
+        // What each camera that counts sees of it, weighted: the active ones that draw its
+        // layers, and the marked one.
         let seen = || {
             views
                 .iter()
-                .filter(|v| v.active || marked.is_some_and(|m| m.entity == v.entity))
-                .filter_map(|v| Some((v, area_of(v.projector.as_ref()?))))
+                .filter(|v| {
+                    (v.active && v.share.sees(layers))
+                        || marked.is_some_and(|m| m.entity == v.entity)
+                })
+                .filter_map(|v| {
+                    let weight = if v.active { v.share.weight } else { 1.0 };
+                    Some((v, area_of(v.projector.as_ref()?) * weight))
+                })
         };
         self.seen_area = if full_detail || !self.settings.budgeted {
             0.0

@@ -7,6 +7,7 @@ use glam::Vec3;
 
 /// The plane a [`Partition::grid`] is laid over.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "bevy", derive(bevy::reflect::Reflect))]
 pub enum GridPlane {
     /// The ground plane (Y up): terrain.
     #[default]

@@ -9,7 +9,8 @@ use bevy_aslod::mesh::LoadLimits;
 use bevy_aslod::mrm::{self, BuildInfo, MrmFile};
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{
-    AslodPlugin, MultiresMesh, MultiresModel, MultiresScene, MultiresSceneModels,
+    AslodPlugin, MultiresBuildFailed, MultiresMesh, MultiresModel, MultiresScene,
+    MultiresSceneConverted, MultiresSceneModels,
 };
 use bevy_aslod::regions::Partition;
 use bevy_aslod::skin::DEFAULT_RIGID_DELTA;
@@ -126,6 +127,12 @@ fn a_missing_baked_file_builds_instead() {
         handles.iter().all(|h| h.path().is_none()),
         "built, not loaded"
     );
+}
+
+/// The messages of type `M` written in the last two updates.
+fn messages<M: Message + Clone>(app: &App) -> Vec<M> {
+    let messages = app.world().resource::<Messages<M>>();
+    messages.get_cursor().read(messages).cloned().collect()
 }
 
 /// Writes `name` into `dir`: the cow in `regions` clusters, baked.
@@ -263,10 +270,18 @@ fn load_limits_hold_for_mrm_files_and_scene_meshes() {
         vertices: 1,
         ..defaults
     };
-    let models = scene_models(
-        &mut app_with(plugin(few_vertices), root),
-        MultiresScene::default(),
-    );
+    let mut app = app_with(plugin(few_vertices), root);
+    let models = scene_models(&mut app, MultiresScene::default());
     assert_eq!(models.models().count(), 0);
+    // The app hears of each mesh that failed, and of the scene.
+    let failed = messages::<MultiresBuildFailed>(&app);
+    assert_eq!(failed.len(), baseline.models().count(), "{failed:?}");
+    for f in &failed {
+        assert!(models.fixed.contains(&f.entity));
+        assert!(f.error.contains("LoadLimits::vertices"), "{}", f.error);
+    }
+    let converted = messages::<MultiresSceneConverted>(&app);
+    assert_eq!(converted.len(), 1);
+    assert_eq!(converted[0].models, models);
     std::fs::remove_dir_all(&dir).ok();
 }

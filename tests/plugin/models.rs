@@ -678,3 +678,244 @@ fn hot_reloading_the_asset_rebuilds_the_regions() {
         "old region meshes freed"
     );
 }
+
+/// Every public component and resource is in the type registry with its `Component` or
+/// `Resource` data and `Default`, so an inspector can show, edit and add it.
+#[test]
+fn public_components_and_resources_are_reflected() {
+    use bevy::ecs::reflect::{ReflectComponent, ReflectResource};
+    use bevy::reflect::std_traits::ReflectDefault;
+    use bevy_aslod::plugin::{
+        AslodOverlay, FullDetail, Geomorph, GpuGeomorph, MultiresScene, MultiresSceneModels,
+        MultiresSkin, MultiresSourceMesh, OverlayLabel, RefineCamera, RegionUploadStats,
+        SharedLevels, VariableLevel, ViewDependent,
+    };
+    use std::any::TypeId;
+
+    let app = app(1_000);
+    let registry = app.world().resource::<AppTypeRegistry>().read();
+    let components = [
+        (TypeId::of::<MultiresModel>(), "MultiresModel"),
+        (TypeId::of::<LodPriority>(), "LodPriority"),
+        (TypeId::of::<LodRegion>(), "LodRegion"),
+        (TypeId::of::<CountInBudget>(), "CountInBudget"),
+        (TypeId::of::<VariableLevel>(), "VariableLevel"),
+        (TypeId::of::<Geomorph>(), "Geomorph"),
+        (TypeId::of::<GpuGeomorph>(), "GpuGeomorph"),
+        (TypeId::of::<SharedLevels>(), "SharedLevels"),
+        (TypeId::of::<ViewDependent>(), "ViewDependent"),
+        (TypeId::of::<RefineCamera>(), "RefineCamera"),
+        (TypeId::of::<MultiresScene>(), "MultiresScene"),
+        (TypeId::of::<MultiresSceneModels>(), "MultiresSceneModels"),
+        (TypeId::of::<MultiresSourceMesh>(), "MultiresSourceMesh"),
+        (TypeId::of::<MultiresSkin>(), "MultiresSkin"),
+        (TypeId::of::<OverlayLabel>(), "OverlayLabel"),
+    ];
+    let resources = [
+        (TypeId::of::<PolygonBudget>(), "PolygonBudget"),
+        (TypeId::of::<FullDetail>(), "FullDetail"),
+        (TypeId::of::<AslodOverlay>(), "AslodOverlay"),
+        (TypeId::of::<AslodStats>(), "AslodStats"),
+        (TypeId::of::<AslodViewport>(), "AslodViewport"),
+        (TypeId::of::<RegionUpload>(), "RegionUpload"),
+        (TypeId::of::<RegionUploadStats>(), "RegionUploadStats"),
+    ];
+    for (id, name) in components {
+        let ty = registry
+            .get(id)
+            .unwrap_or_else(|| panic!("{name} is not registered"));
+        assert!(
+            ty.data::<ReflectComponent>().is_some(),
+            "{name}: reflect(Component)"
+        );
+        assert!(
+            ty.data::<ReflectDefault>().is_some(),
+            "{name}: reflect(Default)"
+        );
+    }
+    for (id, name) in resources {
+        let ty = registry
+            .get(id)
+            .unwrap_or_else(|| panic!("{name} is not registered"));
+        assert!(
+            ty.data::<ReflectResource>().is_some(),
+            "{name}: reflect(Resource)"
+        );
+        assert!(
+            ty.data::<ReflectDefault>().is_some(),
+            "{name}: reflect(Default)"
+        );
+    }
+}
+
+/// The messages of type `M` written in the last two updates.
+fn messages<M: Message + Clone>(app: &App) -> Vec<M> {
+    let messages = app.world().resource::<Messages<M>>();
+    messages.get_cursor().read(messages).cloned().collect()
+}
+
+#[test]
+fn changing_a_models_handle_rebuilds_it() {
+    use bevy_aslod::plugin::MultiresModelReady;
+    let mut app = app(2_000);
+    let first = add_asset(&mut app);
+    let mesh = terrain(25);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
+    let second = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(MultiresMesh::from_indexed(&mesh, &partition).unwrap());
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &first, Vec3::ZERO);
+    app.update();
+    assert_eq!(region_children(&mut app).len(), 4);
+    let ready = messages::<MultiresModelReady>(&app);
+    assert_eq!(ready.len(), 1);
+    assert_eq!((ready[0].model, ready[0].asset), (model, first.id()));
+
+    app.world_mut()
+        .entity_mut(model)
+        .insert(MultiresModel(second.clone()));
+    app.update();
+    app.update();
+    assert_eq!(region_children(&mut app).len(), 9, "the old regions went");
+    let instance = app.world().get::<MultiresInstance>(model).unwrap();
+    assert_eq!(instance.region_entities().len(), 9);
+    let ready = messages::<MultiresModelReady>(&app);
+    assert_eq!(ready.last().map(|m| m.asset), Some(second.id()));
+    // The same handle again changes nothing.
+    let before = instance.region_entities().to_vec();
+    app.world_mut()
+        .entity_mut(model)
+        .insert(MultiresModel(second));
+    app.update();
+    let instance = app.world().get::<MultiresInstance>(model).unwrap();
+    assert_eq!(instance.region_entities(), &before[..]);
+}
+
+#[test]
+fn a_model_whose_asset_fails_to_load_is_reported() {
+    use bevy_aslod::plugin::MultiresBuildFailed;
+    let mut app = app(2_000);
+    let handle: Handle<MultiresMesh> = app
+        .world()
+        .resource::<AssetServer>()
+        .load("no-such-file.mrm");
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let mut cursor = app
+        .world()
+        .resource::<Messages<MultiresBuildFailed>>()
+        .get_cursor();
+    let mut read = |app: &App| -> Vec<MultiresBuildFailed> {
+        let messages = app.world().resource::<Messages<MultiresBuildFailed>>();
+        cursor.read(messages).cloned().collect()
+    };
+    let mut failed = Vec::new();
+    for _ in 0..500 {
+        app.update();
+        failed.extend(read(&app));
+        if !failed.is_empty() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    assert_eq!(failed.len(), 1, "{failed:?}");
+    assert_eq!(failed[0].entity, model);
+    assert!(
+        failed[0].error.contains("no-such-file.mrm"),
+        "{}",
+        failed[0].error
+    );
+    // Once per model and asset.
+    for _ in 0..5 {
+        app.update();
+        assert!(read(&app).is_empty());
+    }
+}
+
+/// Two models, `near` in front of a second camera and `far` seen by the first, under one
+/// budget; `setup` changes the second camera and `near`. Returns the triangles of both.
+fn two_cameras(setup: impl FnOnce(&mut App, Entity, Entity)) -> (usize, usize) {
+    let mut app = app(1_500);
+    let handle = add_asset(&mut app);
+    let first = spawn_camera(&mut app, Vec3::new(100.0, 10.0, 20.0));
+    app.world_mut().entity_mut(first).insert(
+        Transform::from_xyz(100.0, 10.0, 20.0).looking_at(Vec3::new(100.0, 0.0, 0.0), Vec3::Y),
+    );
+    let far = spawn_model(&mut app, &handle, Vec3::new(100.0, 0.0, 0.0));
+    let near = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let second = spawn_camera(&mut app, Vec3::new(0.0, 3.0, 6.0));
+    setup(&mut app, second, near);
+    for _ in 0..3 {
+        app.update();
+    }
+    (triangles(&mut app, near), triangles(&mut app, far))
+}
+
+#[test]
+fn cameras_opt_out_weigh_their_share_and_respect_render_layers() {
+    use bevy::camera::visibility::RenderLayers;
+    use bevy_aslod::plugin::{LodCameraWeight, NoLodAllocation};
+    let both = two_cameras(|_, _, _| {});
+    let without = two_cameras(|app, second, _| {
+        app.world_mut().despawn(second);
+    });
+    assert!(
+        both.0 > without.0,
+        "the second camera asks for detail: {both:?} {without:?}"
+    );
+    let opted_out = two_cameras(|app, second, _| {
+        app.world_mut().entity_mut(second).insert(NoLodAllocation);
+    });
+    assert_eq!(opted_out, without, "a camera marked out changes nothing");
+    let zero = two_cameras(|app, second, _| {
+        app.world_mut()
+            .entity_mut(second)
+            .insert(LodCameraWeight(0.0));
+    });
+    assert_eq!(zero, without);
+    let half = two_cameras(|app, second, _| {
+        app.world_mut()
+            .entity_mut(second)
+            .insert(LodCameraWeight(0.01));
+    });
+    assert!(
+        half.0 < both.0 && half.0 >= without.0,
+        "{half:?} {both:?} {without:?}"
+    );
+
+    // On layer 1, `near` is weighed by a camera that renders layer 1 only, and its regions
+    // take its layers.
+    let mut app = app(1_500);
+    let handle = add_asset(&mut app);
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let camera = spawn_camera(&mut app, Vec3::new(0.0, 3.0, 6.0));
+    app.world_mut()
+        .entity_mut(model)
+        .insert(RenderLayers::layer(1));
+    app.update();
+    app.update();
+    assert_eq!(
+        triangles(&mut app, model),
+        coarsest(&app, &handle),
+        "no camera draws it"
+    );
+    for (region, _) in region_children(&mut app) {
+        assert_eq!(
+            app.world().get::<RenderLayers>(region),
+            Some(&RenderLayers::layer(1))
+        );
+    }
+    app.world_mut()
+        .entity_mut(camera)
+        .insert(RenderLayers::layer(1));
+    app.update();
+    app.update();
+    assert!(triangles(&mut app, model) > coarsest(&app, &handle));
+    app.world_mut().entity_mut(model).remove::<RenderLayers>();
+    app.update();
+    for (region, _) in region_children(&mut app) {
+        assert!(app.world().get::<RenderLayers>(region).is_none());
+    }
+}

@@ -147,7 +147,7 @@ impl MaterialExtension for GeomorphExtension {
 /// `geomorph.wgsl` does. Without it a [`Geomorph`](crate::plugin::Geomorph) model's moving
 /// vertices are written from the CPU each frame.
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[reflect(Component)]
+#[reflect(Component, Default)]
 pub struct GpuGeomorph;
 
 /// Draws [`MultiresModel`]s with `ExtendedMaterial<B, GeomorphExtension>`: adds Bevy's

@@ -41,7 +41,8 @@ use std::sync::Arc;
 /// The joints of a skinned [`MultiresModel`](super::MultiresModel), in the skin's joint
 /// order (as in Bevy's `SkinnedMesh::joints`). A skinned model without it is drawn in its
 /// bind pose, with a warning.
-#[derive(Component, Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Component, Reflect, Clone, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
 pub struct MultiresSkin {
     /// The joint entities.
     pub joints: Vec<Entity>,
