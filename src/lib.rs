@@ -1,4 +1,12 @@
-#![doc = include_str!("../README.md")]
+// The README's Bevy examples compile with the `bevy` feature; without it the crate keeps a
+// short page of its own.
+#![cfg_attr(feature = "bevy", doc = include_str!("../README.md"))]
+#![cfg_attr(
+    not(feature = "bevy"),
+    doc = "Multiresolution meshes under one polygon budget: the core (`mesh`, `multires`, \
+           `regions`, `refine`, `budget`, `mrm`) without Bevy. The README, the crate's page \
+           with the default `bevy` feature, shows the plugin."
+)]
 #![warn(missing_docs)]
 
 /// `with_FIELD` setters for an options struct that is `#[non_exhaustive]` (so that code outside

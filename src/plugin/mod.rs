@@ -130,7 +130,9 @@ use sets::MaterialSystems;
 /// `GizmoPlugin` present, a debug system draws region boxes while [`AslodOverlay`] is on.
 ///
 /// Needs `Assets<Mesh>` and `Assets<StandardMaterial>` (`DefaultPlugins`, or
-/// `init_asset` in a headless app).
+/// `init_asset` in a headless app). Add it after `DefaultPlugins` (Bevy's `PbrPlugin`): it
+/// then sets up [`GeomorphMaterial`] too; added before, it says so at start-up with a warning
+/// and works without it.
 #[derive(Clone, Debug, Default)]
 pub struct AslodPlugin {
     /// The budget put in the [`PolygonBudget`] resource at start-up.
@@ -316,5 +318,14 @@ impl Plugin for AslodPlugin {
     fn finish(&self, app: &mut App) {
         overlay::add_if_gizmos(app);
         render::finish(app);
+        // Bevy builds a plugin as it is added, so the geomorph material can only be added
+        // after the `PbrPlugin` it builds on.
+        if app.is_plugin_added::<bevy::pbr::PbrPlugin>()
+            && !app.is_plugin_added::<GeomorphMaterialPlugin<StandardMaterial>>()
+        {
+            warn!(
+                "AslodPlugin was added before PbrPlugin, so GeomorphMaterial is not set up (models drawn with it show nothing; other materials morph on the CPU as usual): add AslodPlugin after DefaultPlugins, or GeomorphMaterialPlugin::<StandardMaterial> after PbrPlugin"
+            );
+        }
     }
 }
