@@ -263,9 +263,10 @@ pub fn read(bytes: &[u8]) -> Result<MrmFile, MrmError> {
 /// use bevy_aslod::mrm::{self, MrmError};
 ///
 /// let bytes = std::fs::read("assets/mannequin.mrm").unwrap();
-/// let limits = LoadLimits { joints: 10, ..LoadLimits::default() };
-/// let e = mrm::read_with_limits(&bytes, &limits).unwrap_err();
-/// assert!(matches!(e, MrmError::LimitExceeded { limit: "joints", .. }));
+/// // The mannequin's skin has 10 joints.
+/// let limits = LoadLimits { joints: 9, ..LoadLimits::default() };
+/// let read = mrm::read_with_limits(&bytes, &limits);
+/// assert!(matches!(read, Err(MrmError::LimitExceeded { limit: "joints", .. })));
 /// ```
 pub fn read_with_limits(bytes: &[u8], limits: &LoadLimits) -> Result<MrmFile, MrmError> {
     within("file_bytes", bytes.len(), limits.file_bytes)?;
