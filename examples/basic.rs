@@ -1,8 +1,12 @@
 //! The plugin in brief: a dancing glTF character under one triangle budget, an orbit camera
-//! (Left/Right, W/S) and the count on screen. `--frames N` exits N frames after it shows.
+//! (Left/Right, W/S) and the count on screen. The app keeps its own window settings, and a
+//! picture-in-picture camera from above is marked `NoLodAllocation`: it shows the levels the
+//! main camera chose and takes no budget. `--frames N` exits N frames after it shows.
 
+use bevy::camera::Viewport;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::plugin::{MultiresSceneConverted, NoLodAllocation};
 use bevy_aslod::prelude::*;
 
 const MODEL: &str = "mannequin.glb";
@@ -13,10 +17,19 @@ static FRAMES: std::sync::LazyLock<Option<u32>> = std::sync::LazyLock::new(|| {
 });
 
 fn main() -> AppExit {
+    let window = Window {
+        title: "bevy_aslod: basic".into(),
+        resolution: (960, 540).into(),
+        ..default()
+    };
     App::new()
-        .add_plugins((DefaultPlugins, AslodPlugin::default().with_budget(2_000)))
+        .add_plugins(DefaultPlugins.set(WindowPlugin {
+            primary_window: Some(window),
+            ..default()
+        }))
+        .add_plugins(AslodPlugin::default().with_budget(2_000))
         .add_systems(Startup, setup)
-        .add_systems(Update, (dance, orbit, show_count))
+        .add_systems(Update, (dance, orbit, converted, show_count))
         .run()
 }
 
@@ -30,6 +43,19 @@ fn setup(mut commands: Commands, assets: Res<AssetServer>) {
     let eye = Transform::from_xyz(0.0, 1.0, 3.0).looking_at(Vec3::Y, Vec3::Y);
     commands.spawn((DirectionalLight::default(), sun));
     commands.spawn((Camera3d::default(), eye));
+    // A view from above in the corner: it draws what the main camera's budget chose.
+    let above = Transform::from_xyz(0.0, 4.0, 0.01).looking_at(Vec3::Y, Vec3::Y);
+    let corner = Viewport {
+        physical_position: UVec2::new(16, 16),
+        physical_size: UVec2::new(192, 108),
+        ..default()
+    };
+    let camera = Camera {
+        order: 1,
+        viewport: Some(corner),
+        ..default()
+    };
+    commands.spawn((Camera3d::default(), camera, above, NoLodAllocation));
     commands.spawn(Text::default());
 }
 
@@ -63,14 +89,25 @@ fn orbit(
     camera.translation = Vec3::Y + ((camera.translation - Vec3::Y) * zoom).clamp_length(0.5, 50.0);
 }
 
-/// The triangles the plugin shows this frame, against the budget.
+/// Says once the scene's meshes are multiresolution (the plugin's message, no polling).
+fn converted(mut scenes: MessageReader<MultiresSceneConverted>) {
+    for scene in scenes.read() {
+        info!("{} models in the scene", scene.models.models().count());
+    }
+}
+
+/// The triangles the plugin shows this frame, against the budget, and the cameras that
+/// split it.
 fn show_count(
     stats: Res<AslodStats>,
     mut text: Single<&mut Text>,
     mut shown: Local<u32>,
     mut exit: MessageWriter<AppExit>,
 ) {
-    text.0 = format!("{} triangles / budget {}", stats.triangles, stats.budget);
+    text.0 = format!(
+        "{} triangles / budget {} / {} camera(s) in the split",
+        stats.triangles, stats.budget, stats.cameras
+    );
     *shown += u32::from(stats.triangles > 0);
     if Some(*shown) == *FRAMES {
         println!("{}", text.0);

@@ -23,7 +23,7 @@ const ROBOT: &str = concat!(
 
 /// A folder of the test `name` for the asset server, with the robot (linked, not copied) and
 /// `robot.mrm` baked from it the way `aslod bake` does.
-fn asset_folder(name: &str) -> PathBuf {
+pub(super) fn asset_folder(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("aslod-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let link = dir.join("robot.glb");
@@ -136,7 +136,7 @@ fn messages<M: Message + Clone>(app: &App) -> Vec<M> {
 }
 
 /// Writes `name` into `dir`: the cow in `regions` clusters, baked.
-fn bake_cow(dir: &std::path::Path, name: &str, regions: usize) {
+pub(super) fn bake_cow(dir: &std::path::Path, name: &str, regions: usize) {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../shared/testdata/meshes/cow.obj"

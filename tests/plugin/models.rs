@@ -15,7 +15,7 @@ use glam::Vec3;
 #[path = "../../benches/common/scene.rs"]
 pub(super) mod scene;
 
-use scene::patch as terrain;
+pub(super) use scene::patch as terrain;
 
 pub(super) fn asset() -> MultiresMesh {
     let mesh = terrain(25);

@@ -1,16 +1,23 @@
-//! A long session, headless: a wandering camera over models of three kinds (regions, shared
-//! levels, view-dependent) spawned and despawned, materials and the budget changed, an asset
-//! reloaded in place. The budget holds every frame, nothing panics, and once everything is
-//! despawned the `Mesh` and `MultiresMesh` assets are back to where they started.
+//! A long session, headless: a wandering camera over models of five kinds (regions, shared
+//! levels, view-dependent, loaded from a baked file, and glTF scenes under `MultiresScene`)
+//! spawned and despawned, materials, asset handles and the budget changed, an asset replaced
+//! in place and the baked file re-baked and hot-reloaded. The budget holds every frame,
+//! nothing panics, and once everything is despawned the `Mesh` and `MultiresMesh` assets are
+//! back to where they started.
 //! `ASLOD_SOAK_FRAMES=10000 cargo test --release --all-features --test plugin soak`
 //! (`make soak`) runs it long; the default is short enough for CI.
 
-use super::models::{app, asset, spawn_camera};
+use super::baked::{asset_folder, bake_cow};
+use super::models::{asset, spawn_camera, terrain};
+use super::skinned::app_with;
 use super::view_dependent::cow;
 use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
-    AslodStats, MultiresMesh, MultiresModel, PolygonBudget, SharedLevels, ViewDependent,
+    AslodPlugin, AslodStats, MultiresMesh, MultiresModel, MultiresScene, PolygonBudget,
+    SharedLevels, ViewDependent,
 };
+use bevy_aslod::regions::{GridPlane, Partition};
 
 /// Resident memory in bytes (Linux; `None` elsewhere).
 fn resident_bytes() -> Option<u64> {
@@ -45,7 +52,13 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         .ok()
         .and_then(|f| f.parse().ok())
         .unwrap_or(600);
-    let mut app = app(20_000);
+    // The robot glTF and `cow.mrm`, baked here and re-baked during the session.
+    let dir = asset_folder("soak");
+    bake_cow(&dir, "cow.mrm", 4);
+    let mut app = app_with(
+        AslodPlugin::default().with_budget(20_000),
+        dir.to_str().unwrap(),
+    );
     let camera = spawn_camera(&mut app, Vec3::new(0.0, 30.0, 60.0));
     app.update();
     let counts = |app: &App| {
@@ -63,6 +76,18 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         .world_mut()
         .resource_mut::<Assets<MultiresMesh>>()
         .add(cow());
+    let mesh = terrain(25);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
+    let terrain_3x3 = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(MultiresMesh::from_indexed(&mesh, &partition).unwrap());
+    let baked: Handle<MultiresMesh> = app.world().resource::<AssetServer>().load("cow.mrm");
+    let robot = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("robot.glb"));
+    let mut rebakes = 0;
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let mut live: Vec<Entity> = Vec::new();
     let mut budget = 20_000u32;
@@ -92,14 +117,18 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
                 .world_mut()
                 .resource_mut::<Assets<StandardMaterial>>()
                 .add(StandardMaterial::default());
-            let mut model = match rng.below(3) {
+            let mut model = match rng.below(5) {
                 0 => app.world_mut().spawn(MultiresModel(terrain.clone())),
                 1 => app
                     .world_mut()
                     .spawn((MultiresModel(terrain.clone()), SharedLevels::default())),
-                _ => app
+                2 => app
                     .world_mut()
                     .spawn((MultiresModel(refined.clone()), ViewDependent::default())),
+                3 => app.world_mut().spawn(MultiresModel(baked.clone())),
+                _ => app
+                    .world_mut()
+                    .spawn((WorldAssetRoot(robot.clone()), MultiresScene::default())),
             };
             model.insert((MeshMaterial3d(material), Transform::from_translation(at)));
             live.push(model.id());
@@ -121,6 +150,27 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
             app.world_mut()
                 .entity_mut(live[k])
                 .insert(MeshMaterial3d(material));
+        }
+        if frame % 17 == 9 && !live.is_empty() {
+            // Another asset for a region model: it rebuilds.
+            let k = rng.below(live.len() as u64) as usize;
+            let mut entity = app.world_mut().entity_mut(live[k]);
+            if let Some(mut model) = entity.get_mut::<MultiresModel>()
+                && (model.0 == terrain || model.0 == terrain_3x3)
+            {
+                let other = if model.0 == terrain {
+                    &terrain_3x3
+                } else {
+                    &terrain
+                };
+                model.0 = other.clone();
+            }
+        }
+        if frame % 151 == 75 {
+            // `cow.mrm` re-baked with another cut, and reloaded as the file watcher would.
+            rebakes += 1;
+            bake_cow(&dir, "cow.mrm", if rebakes % 2 == 0 { 4 } else { 12 });
+            app.world().resource::<AssetServer>().reload("cow.mrm");
         }
         if frame % 13 == 7 {
             // Well above every model's coarsest level together (at most 14 small models).
@@ -168,13 +218,19 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
     for model in live.drain(..) {
         app.world_mut().entity_mut(model).despawn();
     }
-    drop((terrain, refined));
-    for _ in 0..5 {
+    drop((terrain, refined, terrain_3x3, baked, robot));
+    // Loads still under way finish, and what nothing holds is dropped.
+    for _ in 0..200 {
         app.update();
+        if counts(&app) == baseline {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
     }
     assert_eq!(
         counts(&app),
         baseline,
         "(meshes, multires assets) after everything was despawned"
     );
+    std::fs::remove_dir_all(&dir).ok();
 }
