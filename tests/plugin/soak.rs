@@ -8,14 +8,14 @@
 //! (`make soak`) runs it long; the default is short enough for CI.
 
 use super::baked::{asset_folder, bake_cow};
-use super::models::{asset, spawn_camera, terrain};
+use super::models::{asset, spawn_camera, terrain as patch};
 use super::skinned::app_with;
 use super::view_dependent::cow;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, MultiresMesh, MultiresModel, MultiresScene, PolygonBudget,
-    SharedLevels, ViewDependent,
+    AslodPlugin, AslodStats, MultiresMesh, MultiresModel, MultiresModelReady, MultiresScene,
+    MultiresSceneConverted, PolygonBudget, SharedLevels, ViewDependent,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 
@@ -76,7 +76,7 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         .world_mut()
         .resource_mut::<Assets<MultiresMesh>>()
         .add(cow());
-    let mesh = terrain(25);
+    let mesh = patch(25);
     let partition = Partition::grid(&mesh, GridPlane::XZ, 3, 3).unwrap();
     let terrain_3x3 = app
         .world_mut()
@@ -88,6 +88,16 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         .resource::<AssetServer>()
         .load(GltfAssetLabel::Scene(0).from_asset("robot.glb"));
     let mut rebakes = 0;
+    // What the plugin said: models ready (by asset) and scenes converted.
+    let mut ready_cursor = app
+        .world()
+        .resource::<Messages<MultiresModelReady>>()
+        .get_cursor();
+    let mut scene_cursor = app
+        .world()
+        .resource::<Messages<MultiresSceneConverted>>()
+        .get_cursor();
+    let (mut ready, mut scenes_converted) = (Vec::new(), 0);
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let mut live: Vec<Entity> = Vec::new();
     let mut budget = 20_000u32;
@@ -117,7 +127,17 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
                 .world_mut()
                 .resource_mut::<Assets<StandardMaterial>>()
                 .add(StandardMaterial::default());
-            let mut model = match rng.below(5) {
+            // RobotExpressive cannot lose a triangle (2,412 at every level): at most two
+            // scenes keep every model's coarsest levels together under the smallest budget.
+            let scenes = live
+                .iter()
+                .filter(|&&e| app.world().get::<MultiresScene>(e).is_some())
+                .count();
+            let kind = match rng.below(5) {
+                4 if scenes >= 2 => 0,
+                kind => kind,
+            };
+            let mut model = match kind {
                 0 => app.world_mut().spawn(MultiresModel(terrain.clone())),
                 1 => app
                     .world_mut()
@@ -188,6 +208,11 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         if warm.is_some() {
             peak_after_warm_up = peak_after_warm_up.max(resident_bytes().unwrap_or(0));
         }
+        let world = app.world();
+        let messages = world.resource::<Messages<MultiresModelReady>>();
+        ready.extend(ready_cursor.read(messages).map(|m| (frame, m.asset)));
+        let messages = world.resource::<Messages<MultiresSceneConverted>>();
+        scenes_converted += scene_cursor.read(messages).count();
         let stats = *app.world().resource::<AslodStats>();
         if stats.allocated {
             allocated += 1;
@@ -201,6 +226,27 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
     assert!(
         allocated > frames / 2,
         "the budget was split in {allocated} frames"
+    );
+    // Every kind took part: scenes converted, baked models shown, and shown again after a
+    // re-bake, and models rebuilt on the other terrain asset.
+    let shown = |id: AssetId<MultiresMesh>| ready.iter().filter(|(_, a)| *a == id).count();
+    assert!(scenes_converted > 0, "no scene was converted");
+    assert!(
+        shown(terrain_3x3.id()) > 0,
+        "no model moved to the other asset"
+    );
+    let baked_frames: Vec<usize> = ready
+        .iter()
+        .filter(|(_, a)| *a == baked.id())
+        .map(|(f, _)| *f)
+        .collect();
+    assert!(
+        baked_frames.iter().any(|&f| f > 75),
+        "no baked model was shown after the first re-bake: {baked_frames:?}"
+    );
+    println!(
+        "soak: {} models ready, {scenes_converted} scenes converted, {rebakes} re-bakes",
+        ready.len()
     );
     if let Some(warm) = warm {
         let grown = peak_after_warm_up as f64 / warm as f64 - 1.0;
