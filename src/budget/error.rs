@@ -39,4 +39,15 @@ pub enum BudgetError {
     /// The camera matrices or the viewport cannot be used for projected areas.
     #[error("unusable camera: {0}")]
     InvalidCamera(&'static str),
+    /// A frame-time target was zero, negative or not finite.
+    #[error("the frame-time target must be a positive number of milliseconds (got {0})")]
+    InvalidTarget(f32),
+    /// A budget range was empty or started at zero.
+    #[error("the budget range {min}..={max} is empty or starts at 0")]
+    InvalidRange {
+        /// Its lower end.
+        min: u32,
+        /// Its upper end.
+        max: u32,
+    },
 }

@@ -81,6 +81,7 @@
 
 mod allocate;
 mod error;
+mod frame_time;
 mod projected_area;
 
 /// The boxes the budget projects, re-exported from [`bounds`](crate::bounds), where they live
@@ -91,4 +92,5 @@ pub use allocate::{
     RegionInput, Sequential, allocate,
 };
 pub use error::BudgetError;
+pub use frame_time::{ControllerState, FrameTimeController};
 pub use projected_area::{ProjectedAreaCamera, silhouette};
