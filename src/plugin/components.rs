@@ -2,7 +2,7 @@
 //! [`MultiresModel`], [`LodPriority`], [`Geomorph`], ...) and what it reads ([`AslodStats`]).
 
 use super::asset::MultiresMesh;
-use crate::budget::{AllocationParams, DEFAULT_ALPHA, DEFAULT_BUDGET};
+use crate::budget::{AllocationParams, ControllerState, DEFAULT_ALPHA, DEFAULT_BUDGET};
 use bevy::prelude::*;
 
 /// The global polygon budget and how it is split (the paper's allocator node).
@@ -24,6 +24,26 @@ pub struct PolygonBudget {
     ///
     /// Default: `0`.
     pub hysteresis: u32,
+    /// A frame time to aim at: with it, the plugin sets `total` every frame (see
+    /// [`FrameTarget`]). Default: `None` (`total` is the user's).
+    pub frame_target: Option<FrameTarget>,
+}
+
+/// A budget in milliseconds: each frame, before the split, the plugin moves
+/// [`PolygonBudget::total`] within `min..=max` so that frames take about `ms`
+/// ([`FrameTimeController`](crate::budget::FrameTimeController)). The cost it measures is the
+/// whole frame's wall time (`Time<Real>`'s delta; [`AslodStats::frame_ms`] smoothed), so
+/// with vsync on, a target below the display's interval is what it can reach. The triangle
+/// budget still holds every frame inside the `total` it chose.
+#[derive(Reflect, Clone, Copy, Debug, PartialEq)]
+pub struct FrameTarget {
+    /// The frame time to aim at, in milliseconds. Must be positive and finite (else the
+    /// target is ignored, with a warning).
+    pub ms: f32,
+    /// The smallest `total` it may set (at least `1`).
+    pub min: u32,
+    /// The largest `total` it may set.
+    pub max: u32,
 }
 
 impl Default for PolygonBudget {
@@ -32,11 +52,34 @@ impl Default for PolygonBudget {
             total: DEFAULT_BUDGET,
             alpha: DEFAULT_ALPHA,
             hysteresis: 0,
+            frame_target: None,
         }
     }
 }
 
 impl PolygonBudget {
+    /// A budget in milliseconds: frames of about `ms`, with `total` kept within `range`
+    /// (starting at its lower end).
+    ///
+    /// ```
+    /// use bevy_aslod::plugin::PolygonBudget;
+    /// // About 60 frames a second, between 20,000 and 2 million triangles.
+    /// let budget = PolygonBudget::target_ms(16.0, 20_000..=2_000_000);
+    /// assert_eq!(budget.total, 20_000);
+    /// ```
+    #[must_use]
+    pub fn target_ms(ms: f32, range: std::ops::RangeInclusive<u32>) -> Self {
+        Self {
+            total: (*range.start()).max(1),
+            frame_target: Some(FrameTarget {
+                ms,
+                min: *range.start(),
+                max: *range.end(),
+            }),
+            ..Self::default()
+        }
+    }
+
     /// The allocator's parameters for a fixed cost.
     #[must_use]
     pub fn params(&self, fixed_cost: u32) -> AllocationParams {
@@ -198,4 +241,11 @@ pub struct AslodStats {
     pub upload_bytes: u64,
     /// Level meshes alive that [`SharedLevels`](super::SharedLevels) models share.
     pub shared_meshes: usize,
+    /// The frame time [`PolygonBudget::frame_target`] aims at (`0` without one).
+    pub target_ms: f32,
+    /// The frame time the controller measured, smoothed over a few frames: the whole frame's
+    /// wall time from `Time<Real>` (`0` without a target).
+    pub frame_ms: f32,
+    /// What the frame-time controller is doing.
+    pub controller: ControllerState,
 }

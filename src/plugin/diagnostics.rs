@@ -16,11 +16,18 @@ pub const REGIONS_CHANGED: DiagnosticPath = DiagnosticPath::const_new("aslod/reg
 /// Time in `Deform`, ms.
 pub const DEFORM_MS: DiagnosticPath = DiagnosticPath::const_new("aslod/deform_ms");
 
+/// The frame time a [`FrameTarget`](super::FrameTarget) aims at, in milliseconds.
+pub const TARGET_MS: DiagnosticPath = DiagnosticPath::const_new("aslod/target_ms");
+/// The smoothed frame time the budget controller measured, in milliseconds.
+pub const FRAME_MS: DiagnosticPath = DiagnosticPath::const_new("aslod/frame_ms");
+
 pub(super) fn register(app: &mut App) {
     app.register_diagnostic(Diagnostic::new(TRIANGLES))
         .register_diagnostic(Diagnostic::new(BUDGET))
         .register_diagnostic(Diagnostic::new(ALLOCATION_MS).with_suffix("ms"))
         .register_diagnostic(Diagnostic::new(UPDATE_MS).with_suffix("ms"))
         .register_diagnostic(Diagnostic::new(REGIONS_CHANGED))
-        .register_diagnostic(Diagnostic::new(DEFORM_MS).with_suffix("ms"));
+        .register_diagnostic(Diagnostic::new(DEFORM_MS).with_suffix("ms"))
+        .register_diagnostic(Diagnostic::new(TARGET_MS).with_suffix("ms"))
+        .register_diagnostic(Diagnostic::new(FRAME_MS).with_suffix("ms"));
 }

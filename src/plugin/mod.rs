@@ -21,7 +21,7 @@
 //! | [`NoLodAllocation`] | a camera (optional) | the camera takes no part in the budget split |
 //! | [`LodCameraWeight`] | a camera (optional) | the weight of its view in the split; default `1` |
 //! | `RenderLayers` | model root, camera (optional) | a camera weighs only the models it draws; the model's layers go to its regions |
-//! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε |
+//! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε; or a frame time to aim at ([`FrameTarget`]) |
 //! | [`AslodViewport`] | resource (optional) | viewport size for cameras without a known one |
 //! | [`AslodOverlay`] | resource | draws every region's world box with gizmos |
 //! | [`AslodStats`] | resource | what the last frame did (also as diagnostics) |
@@ -60,6 +60,7 @@ mod allocate;
 mod asset;
 mod cameras;
 mod components;
+mod control;
 pub mod diagnostics;
 mod error;
 mod geomorph;
@@ -84,8 +85,8 @@ pub use cameras::{LodCameraWeight, NoLodAllocation, RefineCamera};
 /// [`ViewDependentLevel`] under the name of what it draws, a variable-resolution level.
 pub use components::ViewDependentLevel as VariableLevel;
 pub use components::{
-    AslodOverlay, AslodStats, AslodViewport, CountInBudget, FullDetail, Geomorph, LodPriority,
-    LodRegion, MultiresModel, PolygonBudget, ViewDependentLevel,
+    AslodOverlay, AslodStats, AslodViewport, CountInBudget, FrameTarget, FullDetail, Geomorph,
+    LodPriority, LodRegion, MultiresModel, PolygonBudget, ViewDependentLevel,
 };
 pub use error::MultiresError;
 pub use geomorph::{
@@ -236,6 +237,7 @@ impl Plugin for AslodPlugin {
             .insert_resource(AslodOverlay(self.overlay))
             .init_resource::<FullDetail>()
             .init_resource::<AslodStats>()
+            .init_resource::<control::BudgetControl>()
             .init_resource::<cameras::FrameCameras>()
             .init_resource::<allocate::FrameAllocation>()
             .init_resource::<allocate::AllocatorScratch>()
@@ -292,6 +294,7 @@ impl Plugin for AslodPlugin {
                     .after(MaterialSystems),
                 (
                     skin::update_skins,
+                    control::control_budget,
                     cameras::gather_cameras,
                     view_dependent::aim_view_dependent,
                     allocate::allocate,

@@ -919,3 +919,59 @@ fn cameras_opt_out_weigh_their_share_and_respect_render_layers() {
         assert!(app.world().get::<RenderLayers>(region).is_none());
     }
 }
+
+#[test]
+fn a_frame_time_target_moves_the_budget_within_its_bounds() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_aslod::budget::ControllerState;
+    use std::time::Duration;
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    for k in 0..6 {
+        spawn_model(&mut app, &handle, Vec3::new(k as f32 * 3.0 - 7.5, 0.0, 0.0));
+    }
+    // Above every model's coarsest level together, so the split is feasible at the minimum.
+    let min = 6 * coarsest(&app, &handle) as u32 + 100;
+    let max = 50_000;
+    app.insert_resource(PolygonBudget::target_ms(10.0, min..=max));
+    let run = |app: &mut App, frame: Duration, frames: usize| {
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(frame));
+        for _ in 0..frames {
+            app.update();
+            let p = app.world().resource::<PolygonBudget>().total;
+            assert!((min..=max).contains(&p), "P = {p}");
+            let s = stats(app);
+            if s.allocated {
+                assert!(s.triangles <= u64::from(p), "{} over {p}", s.triangles);
+            }
+        }
+        let s = stats(app);
+        (
+            app.world().resource::<PolygonBudget>().total,
+            s.controller,
+            s.target_ms,
+        )
+    };
+    // Frames of 20 ms, slower than the 10 ms aimed at: P falls to its minimum.
+    assert_eq!(
+        run(&mut app, Duration::from_millis(20), 60),
+        (min, ControllerState::AtMinimum, 10.0)
+    );
+    // Frames of 2 ms: P rises to its maximum (about 1.25× a frame: 30 frames from the bottom).
+    assert_eq!(
+        run(&mut app, Duration::from_millis(2), 60),
+        (max, ControllerState::AtMaximum, 10.0)
+    );
+    // Within the dead band it holds.
+    let held = run(&mut app, Duration::from_micros(10_100), 60);
+    let again = run(&mut app, Duration::from_micros(10_100), 10);
+    assert_eq!(held.0, again.0);
+    assert_eq!(again.1, ControllerState::Steady);
+    // Without a target, `total` is the app's again.
+    app.world_mut().resource_mut::<PolygonBudget>().frame_target = None;
+    app.world_mut().resource_mut::<PolygonBudget>().total = 1_234;
+    app.update();
+    assert_eq!(app.world().resource::<PolygonBudget>().total, 1_234);
+    assert_eq!(stats(&app).target_ms, 0.0);
+}
