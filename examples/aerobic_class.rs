@@ -12,6 +12,9 @@
 //! - `--model PATH --clip NAME`: another glTF character and clip (default: the project's
 //!   `assets/mannequin.glb` and its first clip, "Aerobics").
 //! - `--count N`: N dancers (a crowd), at the same budget unless `--budget P` says otherwise.
+//! - `--target-ms T`: a budget in milliseconds: the plugin sets P each frame, between 500 and
+//!   `--budget`, so that frames take about T ms (`PolygonBudget::target_ms`); `frames.csv`
+//!   has each frame's P.
 //! - `--headless --frames N --report DIR`: renders offscreen (an `Image` render target, no
 //!   window), plays the N scripted frames with LOD and without, and writes `frames.csv`,
 //!   `frame_time.png` (Figure 11), `allocation.png`, three screenshots at the first, middle
@@ -94,6 +97,13 @@ fn main() {
             brightness: 500.0,
             ..default()
         })
+        .insert_resource(match args.target_ms {
+            Some(ms) => PolygonBudget::target_ms(ms, 500.min(args.budget)..=args.budget),
+            None => PolygonBudget {
+                total: args.budget,
+                ..default()
+            },
+        })
         .insert_resource(Class::new(&args, &asset_root, file))
         .add_systems(Startup, setup)
         .add_systems(Update, (bind_clip, bind_players, place_dancers).chain());
@@ -139,9 +149,12 @@ struct Args {
     /// Dancers: 3 is the class, more a crowd.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=10_000))]
     count: u64,
-    /// The polygon budget P.
+    /// The polygon budget P (with `--target-ms`, the largest P allowed).
     #[arg(long, default_value_t = BUDGET, value_parser = clap::value_parser!(u32).range(1..))]
     budget: u32,
+    /// Aim at frames of this many milliseconds, P between 500 and `--budget`.
+    #[arg(long, value_name = "MS")]
+    target_ms: Option<f32>,
     /// The offscreen image (WIDTHxHEIGHT).
     #[arg(long, value_name = "WxH", default_value = "960x540", value_parser = common::parse_size)]
     size: (u32, u32),
@@ -862,6 +875,8 @@ struct Row {
     allocate_ms: f64,
     deform_ms: f64,
     update_ms: f64,
+    /// The budget P of the frame.
+    budget: u32,
 }
 
 #[derive(Resource)]
@@ -1000,6 +1015,7 @@ fn drive_report(
                     allocate_ms: stats.allocation_ms,
                     deform_ms: stats.deform_ms,
                     update_ms: stats.update_ms,
+                    budget: stats.budget,
                 };
                 let series = if lod {
                     &mut report.lod
@@ -1182,7 +1198,7 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
     for i in 0..n {
         csv += &format!(",mannequin_{}", i + 1);
     }
-    csv += ",total,no_lod_frame_ms,no_lod_total,in_view_full_detail,allocate_ms,deform_ms,update_ms,no_lod_deform_ms,no_lod_update_ms\n";
+    csv += ",total,no_lod_frame_ms,no_lod_total,in_view_full_detail,allocate_ms,deform_ms,update_ms,no_lod_deform_ms,no_lod_update_ms,budget\n";
     for run in 0..runs {
         for f in 0..frames {
             let (a, b) = (&report.lod[run][f], &report.no_lod[run][f]);
@@ -1191,7 +1207,7 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
                 csv += &format!(",{c}");
             }
             csv += &format!(
-                ",{},{:.3},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
+                ",{},{:.3},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{}\n",
                 a.total,
                 b.ms,
                 b.total,
@@ -1200,7 +1216,8 @@ fn write_report(report: &Report, class: &Class) -> Result<(), String> {
                 a.deform_ms,
                 a.update_ms,
                 b.deform_ms,
-                b.update_ms
+                b.update_ms,
+                a.budget
             );
         }
     }
