@@ -24,10 +24,9 @@
 //! ```
 
 use super::asset::MultiresMesh;
-use super::scene::MultiresSceneModels;
 use bevy::prelude::*;
 
-/// A [`MultiresModel`](super::MultiresModel) got its regions: its asset is loaded (or built)
+/// A `MultiresModel` got its regions: its asset is loaded (or built)
 /// and the plugin spawned what draws it. Written again after a rebuild (another handle, or
 /// a hot-reloaded asset).
 #[derive(Message, Clone, Debug, PartialEq, Eq)]
@@ -38,8 +37,8 @@ pub struct MultiresModelReady {
     pub asset: AssetId<MultiresMesh>,
 }
 
-/// Something could not become multiresolution: a [`MultiresModel`](super::MultiresModel)'s
-/// asset failed to load (the model draws nothing), or a [`MultiresScene`](super::MultiresScene)
+/// Something could not become multiresolution: a `MultiresModel`'s
+/// asset failed to load (the model draws nothing), or a `MultiresScene`
 /// mesh failed to build or to load from its baked file (the mesh stays conventional and
 /// counts its triangles against the budget). Written once per entity and asset.
 #[derive(Message, Clone, Debug, PartialEq, Eq)]
@@ -48,14 +47,4 @@ pub struct MultiresBuildFailed {
     pub entity: Entity,
     /// What went wrong.
     pub error: String,
-}
-
-/// A [`MultiresScene`](super::MultiresScene) is converted: the same
-/// [`MultiresSceneModels`] the plugin put on its root.
-#[derive(Message, Clone, Debug, PartialEq, Eq)]
-pub struct MultiresSceneConverted {
-    /// The scene root.
-    pub scene: Entity,
-    /// What became of its meshes.
-    pub models: MultiresSceneModels,
 }

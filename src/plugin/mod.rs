@@ -97,10 +97,10 @@ pub use geomorph::{
 pub use instance::{MultiresInstance, Refinement};
 pub use loader::{MrmLoadError, MrmLoader};
 pub use materials::MultiresMaterialPlugin;
-pub use messages::{MultiresBuildFailed, MultiresModelReady, MultiresSceneConverted};
+pub use messages::{MultiresBuildFailed, MultiresModelReady};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
 pub use render::{RegionUpload, RegionUploadStats};
-pub use scene::{MultiresScene, MultiresSceneModels, MultiresSourceMesh};
+pub use scene::{MultiresScene, MultiresSceneConverted, MultiresSceneModels, MultiresSourceMesh};
 pub use sets::AslodSystems;
 pub use shared::SharedLevels;
 pub use skin::MultiresSkin;

@@ -4,7 +4,7 @@
 use super::asset::{MultiresMesh, PartitionSpec};
 use super::components::{CountInBudget, Geomorph, MultiresModel};
 use super::error::MultiresError;
-use super::messages::{MultiresBuildFailed, MultiresSceneConverted};
+use super::messages::MultiresBuildFailed;
 use super::skin::MultiresSkin;
 use crate::bevy_mesh::{drawn_triangles, from_bevy_mesh};
 use crate::mesh::{IndexedMesh, LoadLimits, MeshError};
@@ -581,4 +581,14 @@ impl SceneAssetCache {
         }
         result
     }
+}
+
+/// A [`MultiresScene`] is converted: the same
+/// [`MultiresSceneModels`] the plugin put on its root.
+#[derive(Message, Clone, Debug, PartialEq, Eq)]
+pub struct MultiresSceneConverted {
+    /// The scene root.
+    pub scene: Entity,
+    /// What became of its meshes.
+    pub models: MultiresSceneModels,
 }
