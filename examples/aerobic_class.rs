@@ -91,7 +91,7 @@ fn main() {
         "bevy_aslod: the aerobic class (ASLOD Figures 9-11)",
         Some(&asset_root),
     );
-    app.add_plugins(AslodPlugin::default().with_budget(args.budget))
+    app.add_plugins(AslodPlugin::default())
         .insert_resource(ClearColor(Color::srgb(0.80, 0.84, 0.90)))
         .insert_resource(GlobalAmbientLight {
             brightness: 500.0,

@@ -207,8 +207,8 @@ fn input_len(item: &ModelItem) -> usize {
 }
 
 /// The cameras that draw a model on `layers`, and their weights: all of the frame's active
-/// cameras as they are when they are plain and the model has no layers, else those whose
-/// layers meet the model's, gathered into `seen` and `weights`.
+/// cameras as they are when every one draws the model (weights only when some are not 1),
+/// else those whose layers meet the model's, gathered into `seen` and `weights`.
 fn cameras_drawing<'a>(
     frame: &'a FrameCameras,
     layers: Option<&RenderLayers>,
@@ -217,6 +217,9 @@ fn cameras_drawing<'a>(
 ) -> (&'a [ProjectedAreaCamera], Option<&'a [f32]>) {
     if frame.plain && layers.is_none() {
         return (&frame.active, None);
+    }
+    if frame.shares.iter().all(|share| share.sees(layers)) {
+        return (&frame.active, Some(&frame.weights));
     }
     seen.clear();
     weights.clear();

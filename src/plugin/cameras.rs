@@ -51,10 +51,8 @@ pub(crate) struct CameraShare {
 impl CameraShare {
     /// Whether a model on `layers` (none: the default layer) is drawn by this camera.
     pub(crate) fn sees(&self, layers: Option<&RenderLayers>) -> bool {
-        match layers {
-            Some(layers) => self.layers.intersects(layers),
-            None => self.layers.intersects(&RenderLayers::default()),
-        }
+        self.layers
+            .intersects(layers.unwrap_or(&RenderLayers::default()))
     }
 }
 
@@ -68,6 +66,9 @@ pub(crate) struct FrameCameras {
     pub(crate) active: Vec<ProjectedAreaCamera>,
     /// Each active camera's layers and weight, by `active`'s index.
     pub(crate) shares: Vec<CameraShare>,
+    /// Each active camera's weight, by `active`'s index (the shares' weights as one slice,
+    /// for the models every camera draws).
+    pub(crate) weights: Vec<f32>,
     /// Whether every active camera renders the default layer and nothing else, at weight 1
     /// (then a model without layers is weighed by all of them as they are).
     pub(crate) plain: bool,
@@ -129,6 +130,7 @@ pub(crate) fn gather_cameras(
     stats.budget = budget.total;
     frame.active.clear();
     frame.shares.clear();
+    frame.weights.clear();
     frame.views.clear();
     frame.plain = true;
     // A phantom `RefineCamera` with no render target of its own refines for the viewport of
@@ -183,6 +185,7 @@ pub(crate) fn gather_cameras(
         if counts && let Some(c) = projector {
             frame.plain &= share.weight == 1.0 && share.layers == RenderLayers::default();
             frame.active.push(c);
+            frame.weights.push(share.weight);
             frame.shares.push(share.clone());
         }
         frame.views.push(CameraView {
