@@ -61,7 +61,6 @@ use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_asset::{AssetExtractionSystems, ExtractedAssets, RenderAsset};
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::settings::{RenderCreation, WgpuLimits, WgpuSettings, WgpuSettingsPriority};
-use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::render::{ExtractSchedule, Render, RenderApp, RenderSystems};
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
@@ -364,7 +363,7 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
             }
         }
     }
-    let cpu = cpu_name();
+    let cpu = common::cpu_name();
     println!(
         "render_cost {scene_name}: P = {budget}, hysteresis {hysteresis}, 32x18 target, {frames} frames x {rounds} rounds per row, {} build, {cpu}, {} cores",
         if cfg!(debug_assertions) {
@@ -403,18 +402,6 @@ fn run_bench(scene_name: &str, frames: usize, hysteresis: u32) -> Result<(), Str
         );
     }
     Ok(())
-}
-
-/// The CPU's model name.
-fn cpu_name() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into())
 }
 
 /// A bench scene: the app, its budget, its camera and the camera's path over `t` in `0..1`.
@@ -531,82 +518,6 @@ fn aerobic_scene(hysteresis: u32) -> Result<Bench, String> {
 // ---------------------------------------------------------------------------------------
 // The render check.
 
-/// The last capture of each camera.
-#[derive(Resource, Clone, Default)]
-struct Captures(Arc<Mutex<Vec<Option<Image>>>>);
-
-/// Screenshots of `images`, taken a few frames from now.
-fn capture(
-    app: &mut App,
-    images: &[Handle<Image>],
-    captures: &Captures,
-) -> Result<Vec<Image>, String> {
-    captures
-        .0
-        .lock()
-        .expect("captures")
-        .iter_mut()
-        .for_each(|c| *c = None);
-    for (i, image) in images.iter().enumerate() {
-        app.world_mut()
-            .spawn(Screenshot::image(image.clone()))
-            .observe(
-                move |captured: On<ScreenshotCaptured>, captures: Res<Captures>| {
-                    captures.0.lock().expect("captures")[i] = Some(captured.image.clone());
-                },
-            );
-    }
-    // Readbacks arrive a few frames later, later still while pipelines compile on a
-    // busy machine.
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(120) {
-        app.update();
-        let done = captures
-            .0
-            .lock()
-            .expect("captures")
-            .iter()
-            .all(Option::is_some);
-        if done {
-            return Ok(captures
-                .0
-                .lock()
-                .expect("captures")
-                .iter()
-                .map(|c| c.clone().expect("captured"))
-                .collect());
-        }
-    }
-    Err("the screenshots did not arrive within two minutes".into())
-}
-
-/// Lets the pipelines compile (slowly on lavapipe) until every view shows the scene.
-fn wait_until_drawn(
-    app: &mut App,
-    images: &[Handle<Image>],
-    captures: &Captures,
-    dir: &Path,
-) -> Result<(), String> {
-    let mut shots = Vec::new();
-    for _ in 0..60 {
-        for _ in 0..5 {
-            app.update();
-        }
-        shots = capture(app, images, captures)?;
-        if shots.iter().all(|s| common::varied(s) > 0.2) {
-            return Ok(());
-        }
-    }
-    for (i, shot) in shots.iter().enumerate() {
-        common::save_image(shot, &dir.join(format!("view{i}_blank.png")))?;
-    }
-    Err(format!(
-        "the scene was never drawn (fraction of pixels unlike the first: {:?}); see {}",
-        shots.iter().map(common::varied).collect::<Vec<_>>(),
-        dir.display()
-    ))
-}
-
 fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
     let mut app = render_app(cpu_building, Some(ASSETS));
@@ -692,14 +603,14 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         Msaa::Off,
         Transform::from_xyz(20.0, 6.0, -2.0).looking_at(Vec3::new(0.0, 1.0, -2.0), Vec3::Y),
     ));
-    let captures = Captures(Arc::new(Mutex::new(vec![None, None])));
+    let captures = common::Captures::new(2);
     app.insert_resource(captures.clone());
     // The mannequin dances from the start.
     clip::start_clip(&mut app, &gltf, &[dancer], None, 0.7)?;
 
     let mut changes = 0usize;
-    let shoot = |app: &mut App| capture(app, &images, &captures);
-    wait_until_drawn(&mut app, &images, &captures, dir)?;
+    let shoot = |app: &mut App| common::capture(app, &images, &captures);
+    common::wait_until_drawn(&mut app, &images, &captures, dir)?;
 
     let players: Vec<Entity> = app
         .world_mut()
@@ -876,9 +787,9 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
         Msaa::Off,
         Transform::from_xyz(-170.0, 30.0, 20.0).looking_at(Vec3::new(-60.0, 0.0, -80.0), Vec3::Y),
     ));
-    let captures = Captures(Arc::new(Mutex::new(vec![None, None])));
+    let captures = common::Captures::new(2);
     app.insert_resource(captures.clone());
-    wait_until_drawn(&mut app, &images, &captures, dir)?;
+    common::wait_until_drawn(&mut app, &images, &captures, dir)?;
 
     let mut changes = 0;
     let mut most_shared = 0;
@@ -894,7 +805,7 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     for _ in 0..4 {
         app.update();
     }
-    let lod = capture(&mut app, &images, &captures)?;
+    let lod = common::capture(&mut app, &images, &captures)?;
     let stats = *app.world().resource::<AslodStats>();
 
     // The reference: every region a plain mesh built fresh at its final level.
@@ -934,7 +845,7 @@ fn run_shared_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
     for _ in 0..6 {
         app.update();
     }
-    let plain = capture(&mut app, &images, &captures)?;
+    let plain = common::capture(&mut app, &images, &captures)?;
     let json = serde_json::json!({
         "gpu_building": !cpu_building,
         "regions": regions,
@@ -1247,7 +1158,7 @@ fn run_way(
     app.world_mut()
         .entity_mut(camera)
         .insert(RenderTarget::Image(big.clone().into()));
-    let captures = Captures(Arc::new(Mutex::new(vec![None])));
+    let captures = common::Captures::new(1);
     app.insert_resource(captures.clone());
     // Dancers hold their pose, the same in every way, while the views are taken.
     for mut player in app
@@ -1265,7 +1176,11 @@ fn run_way(
         for _ in 0..3 {
             app.update();
         }
-        views.extend(capture(&mut app, std::slice::from_ref(&big), &captures)?);
+        views.extend(common::capture(
+            &mut app,
+            std::slice::from_ref(&big),
+            &captures,
+        )?);
     }
     Ok((out, views))
 }
@@ -1380,7 +1295,7 @@ fn run_instances(counts: &[usize], crowd: Option<usize>, frames: usize) -> Resul
         } else {
             "release"
         },
-        cpu_name(),
+        common::cpu_name(),
         std::thread::available_parallelism().map_or(0, usize::from)
     );
     println!(

@@ -14,14 +14,15 @@ use bevy::input::mouse::AccumulatedMouseMotion;
 use bevy::prelude::*;
 use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_resource::TextureFormat;
-use bevy::render::view::screenshot::ScreenshotCaptured;
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_aslod::budget::Obb;
 use bevy_aslod::plugin::{MultiresInstance, MultiresSceneModels};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// `DefaultPlugins` with assets read from `asset_root`: in a window titled `title`, or, when
 /// `headless`, with no window at all (the examples render into an `Image`), run as fast as
@@ -363,4 +364,99 @@ pub fn psnr_mad(a: &Image, b: &Image) -> (f64, f64) {
         (10.0 * (255.0 * 255.0 / mse).log10()).min(IDENTICAL_PSNR)
     };
     (psnr, absolute / count.max(1) as f64)
+}
+
+/// The last capture of each camera (a resource [`capture`] fills).
+#[derive(Resource, Clone, Default)]
+pub struct Captures(pub Arc<Mutex<Vec<Option<Image>>>>);
+
+impl Captures {
+    /// Room for `cameras` captures; insert it as a resource before [`capture`].
+    pub fn new(cameras: usize) -> Self {
+        Self(Arc::new(Mutex::new(vec![None; cameras])))
+    }
+}
+
+/// Screenshots of `images`, taken a few frames from now.
+pub fn capture(
+    app: &mut App,
+    images: &[Handle<Image>],
+    captures: &Captures,
+) -> Result<Vec<Image>, String> {
+    captures
+        .0
+        .lock()
+        .expect("captures")
+        .iter_mut()
+        .for_each(|c| *c = None);
+    for (i, image) in images.iter().enumerate() {
+        app.world_mut()
+            .spawn(Screenshot::image(image.clone()))
+            .observe(
+                move |captured: On<ScreenshotCaptured>, captures: Res<Captures>| {
+                    captures.0.lock().expect("captures")[i] = Some(captured.image.clone());
+                },
+            );
+    }
+    // Readbacks arrive a few frames later, later still while pipelines compile on a
+    // busy machine.
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(120) {
+        app.update();
+        let done = captures
+            .0
+            .lock()
+            .expect("captures")
+            .iter()
+            .all(Option::is_some);
+        if done {
+            return Ok(captures
+                .0
+                .lock()
+                .expect("captures")
+                .iter()
+                .map(|c| c.clone().expect("captured"))
+                .collect());
+        }
+    }
+    Err("the screenshots did not arrive within two minutes".into())
+}
+
+/// Lets the pipelines compile (slowly on lavapipe) until every view shows the scene.
+pub fn wait_until_drawn(
+    app: &mut App,
+    images: &[Handle<Image>],
+    captures: &Captures,
+    dir: &Path,
+) -> Result<(), String> {
+    let mut shots = Vec::new();
+    for _ in 0..60 {
+        for _ in 0..5 {
+            app.update();
+        }
+        shots = capture(app, images, captures)?;
+        if shots.iter().all(|s| varied(s) > 0.2) {
+            return Ok(());
+        }
+    }
+    for (i, shot) in shots.iter().enumerate() {
+        save_image(shot, &dir.join(format!("view{i}_blank.png")))?;
+    }
+    Err(format!(
+        "the scene was never drawn (fraction of pixels unlike the first: {:?}); see {}",
+        shots.iter().map(varied).collect::<Vec<_>>(),
+        dir.display()
+    ))
+}
+
+/// The CPU's model name.
+pub fn cpu_name() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into())
 }

@@ -47,7 +47,8 @@ fn ridged(x: f32, z: f32) -> f32 {
     sum
 }
 
-fn terrain_height(x: f32, z: f32) -> f32 {
+/// The terrain's height at `(x, z)`.
+pub fn height(x: f32, z: f32) -> f32 {
     HEIGHT * ridged(x / 70.0 + 3.7, z / 70.0 + 1.3)
 }
 
@@ -61,7 +62,7 @@ pub fn terrain_middle(side: u32) -> IndexedMesh {
     let half = (side - 1) as f32 * SPACING * 0.5;
     let at = |i: u32, j: u32| {
         let (x, z) = (i as f32 * SPACING - half, j as f32 * SPACING - half);
-        Vec3::new(x, terrain_height(x, z), z)
+        Vec3::new(x, height(x, z), z)
     };
     let mut positions = Vec::with_capacity((side * side) as usize);
     let mut normals = Vec::with_capacity(positions.capacity());
