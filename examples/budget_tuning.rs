@@ -26,12 +26,13 @@
 //! --min..=--max)` and at a fixed `--budget P`, interleaved `--repeat` times. At frame
 //! `--step-at F` (the middle by default; `--no-step` for none) 50 rocks spawn in view, a load
 //! step: plain 5,120-triangle meshes, which the budget does not count (models under the
-//! budget are no load step: it absorbs them). Writes
-//! `control.csv` (every frame of every run), `control.png` (frame time and P along the path),
-//! `after_step.png` (the view ten frames after the step) and `summary.json`: the fixed run's fastest and slowest frame, the controlled run's median
-//! and p95 frame against T, the frames the controller took after the step to bring its
-//! smoothed frame time back within 10% of T (for 10 frames in a row), how much P moves between frames in steady state, and whether the triangles
-//! stayed within P.
+//! budget are no load step: it absorbs them). Writes `control.csv` (every frame of every
+//! run), `control.png` (frame time and P along the path), `after_step.png` (the view ten
+//! frames after the step) and `summary.json`: the fixed run's fastest and slowest frame; the
+//! controlled runs' median and p95 frame against T; the frames the controller took after the
+//! step to bring its smoothed frame time back within 10% of T (for 10 frames in a row); how
+//! much P moves between frames in steady state (frames within 10% of T); and whether the
+//! triangles stayed within P.
 
 mod common;
 
@@ -971,7 +972,7 @@ fn control(scene: &mut Scene, args: &Args, target_ms: f32) -> Result<(), String>
         .collect();
     let moves: Vec<f64> = control_runs
         .iter()
-        .flat_map(|rows| steady_moves(rows, step))
+        .flat_map(|rows| steady_moves(rows, t))
         .collect();
     let over = control_runs
         .iter()
@@ -1051,11 +1052,14 @@ fn settle_frames(rows: &[Row], step: u32, t: f64) -> Option<u32> {
         .map(|k| k as u32)
 }
 
-/// `|ΔP| / P` between consecutive frames outside the first 30 frames and the 30 after the
-/// step: the steady state.
-fn steady_moves(rows: &[Row], step: Option<u32>) -> Vec<f64> {
+/// `|ΔP| / P` between consecutive frames in steady state: after the first 30 frames, both
+/// frames' smoothed frame time within [`SETTLE_BAND`] of the target `t` (not recovering
+/// from a load change, nor held at a bound while the path makes frames far faster or
+/// slower than `t`).
+fn steady_moves(rows: &[Row], t: f64) -> Vec<f64> {
+    let steady = |r: &Row| r.frame >= 30 && (f64::from(r.smoothed_ms) - t).abs() <= SETTLE_BAND * t;
     rows.windows(2)
-        .filter(|w| w[1].frame >= 30 && step.is_none_or(|s| !(s..s + 30).contains(&w[1].frame)))
+        .filter(|w| steady(&w[0]) && steady(&w[1]))
         .map(|w| {
             (f64::from(w[1].budget) - f64::from(w[0].budget)).abs() / f64::from(w[0].budget.max(1))
         })

@@ -23,7 +23,7 @@
 //! | `RenderLayers` | model root, camera (optional) | a camera weighs only the models it draws; the model's layers go to its regions |
 //! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε; or a frame time to aim at ([`FrameTarget`]) |
 //! | [`AslodViewport`] | resource (optional) | viewport size for cameras without a known one |
-//! | [`AslodOverlay`] | resource | draws every region's world box with gizmos |
+//! | [`AslodOverlay`] | resource | draws every region's world box with gizmos, its triangles and a status line ([`status_line`]) |
 //! | [`AslodStats`] | resource | what the last frame did (also as diagnostics) |
 //! | [`RegionUpload`] | resource | how level changes reach the renderer; default indices only |
 //! | [`RegionUploadStats`] | render-world resource | bytes the plugin wrote to the GPU last frame |
@@ -98,7 +98,7 @@ pub use instance::{MultiresInstance, Refinement};
 pub use loader::{MrmLoadError, MrmLoader};
 pub use materials::MultiresMaterialPlugin;
 pub use messages::{MultiresBuildFailed, MultiresModelReady};
-pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel};
+pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel, OverlayStatus, status_line};
 pub use render::{RegionUpload, RegionUploadStats};
 pub use scene::{MultiresScene, MultiresSceneConverted, MultiresSceneModels, MultiresSourceMesh};
 pub use sets::AslodSystems;
@@ -228,6 +228,7 @@ impl Plugin for AslodPlugin {
             .register_type::<MultiresSourceMesh>()
             .register_type::<MultiresSkin>()
             .register_type::<OverlayLabel>()
+            .register_type::<OverlayStatus>()
             .add_message::<MultiresModelReady>()
             .add_message::<MultiresBuildFailed>()
             .add_message::<MultiresSceneConverted>()

@@ -1,11 +1,13 @@
 //! The debug overlay (ASLOD Figure 10): every region's world box, drawn with gizmos, and its
-//! triangle count as a screen-space label.
+//! triangle count as a screen-space label; and a status line with the budget, and under a
+//! frame-time target the target, the measured frame time and the controller's state.
 
-use super::components::AslodOverlay;
+use super::components::{AslodOverlay, AslodStats};
 use super::instance::MultiresInstance;
 use super::sets::AslodSystems;
 use super::view_dependent::ViewDependentState;
 use crate::bounds::Obb;
+use crate::budget::ControllerState;
 use bevy::camera::Camera;
 use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
@@ -18,7 +20,7 @@ pub(super) fn add_if_gizmos(app: &mut App) {
     if app.world().contains_resource::<GizmoConfigStore>() {
         app.add_systems(
             PostUpdate,
-            (draw_overlay, place_labels)
+            (draw_overlay, place_labels, show_status)
                 .after(AslodSystems::Upload)
                 .run_if(|overlay: Res<AslodOverlay>| overlay.0),
         )
@@ -33,6 +35,70 @@ pub(super) fn add_if_gizmos(app: &mut App) {
 #[derive(Component, Reflect, Debug, Default)]
 #[reflect(Component, Default)]
 pub struct OverlayLabel;
+
+/// The overlay's status line (top right): [`status_line`] of the frame's [`AslodStats`].
+#[derive(Component, Reflect, Debug, Default)]
+#[reflect(Component, Default)]
+pub struct OverlayStatus;
+
+/// The overlay's status line: `P` and the triangles drawn, and under a frame-time target
+/// ([`PolygonBudget::frame_target`](super::PolygonBudget::frame_target)) the target, the
+/// smoothed frame time the controller measured and what it is doing.
+///
+/// ```
+/// use bevy_aslod::plugin::{AslodStats, status_line};
+///
+/// let stats = AslodStats { budget: 20_000, triangles: 19_870, ..Default::default() };
+/// assert_eq!(status_line(&stats), "P 20000 · 19870 triangles");
+/// ```
+pub fn status_line(stats: &AslodStats) -> String {
+    let mut line = format!("P {} · {} triangles", stats.budget, stats.triangles);
+    if stats.target_ms > 0.0 {
+        let state = match stats.controller {
+            ControllerState::Waiting => "waiting",
+            ControllerState::Settling => "settling",
+            ControllerState::Steady => "steady",
+            ControllerState::AtMinimum => "at its smallest P",
+            ControllerState::AtMaximum => "at its largest P",
+        };
+        line += &format!(
+            " · target {:.1} ms · frame {:.1} ms · {state}",
+            stats.target_ms, stats.frame_ms
+        );
+    }
+    line
+}
+
+/// Writes the status line into its text node (made on first use).
+fn show_status(
+    mut commands: Commands,
+    stats: Res<AslodStats>,
+    mut status: Query<(&mut Text, &mut Visibility), With<OverlayStatus>>,
+) {
+    let line = status_line(&stats);
+    match status.single_mut() {
+        Ok((mut text, mut visibility)) => {
+            if text.0 != line {
+                text.0 = line;
+            }
+            visibility.set_if_neq(Visibility::Inherited);
+        }
+        Err(_) => {
+            commands.spawn((
+                Text(line),
+                Node {
+                    position_type: PositionType::Absolute,
+                    right: Val::Px(8.0),
+                    top: Val::Px(8.0),
+                    ..default()
+                },
+                TextFont::from_font_size(14.0),
+                TextColor(Color::srgb(1.0, 1.0, 0.3)),
+                OverlayStatus,
+            ));
+        }
+    }
+}
 
 /// The 12 edges of a box, as corner pairs in [`Obb::corner`](crate::bounds::Obb::corner)'s
 /// numbering: corners that differ in one bit.
@@ -184,8 +250,8 @@ fn set_label(mut text: Mut<Text>, mut node: Mut<Node>, pixel: Vec2, count: usize
     }
 }
 
-/// Hides the labels while the overlay is off.
-fn hide_labels(mut labels: Query<&mut Visibility, With<OverlayLabel>>) {
+/// Hides the labels and the status line while the overlay is off.
+fn hide_labels(mut labels: Query<&mut Visibility, Or<(With<OverlayLabel>, With<OverlayStatus>)>>) {
     for mut visibility in &mut labels {
         visibility.set_if_neq(Visibility::Hidden);
     }
