@@ -15,12 +15,14 @@
 //!
 //! **The sweep** (`budget_tuning --scene S --out DIR [--budgets P,P,...]`): plays the path at
 //! full detail and at each budget (by default the scene's full-detail triangles halved 1 to 8
-//! times), `--repeat R` times, interleaved; then, dancers still, renders `--views V` points of
+//! times, those under the scene's floor left out), `--repeat R` times, interleaved; then, dancers still, renders `--views V` points of
 //! the path at `--error-size` at each budget and at full detail. Writes `sweep.csv` (per
 //! budget: median and p95 frame, triangles drawn, PSNR against full detail over the views),
 //! `frames.csv`, `error_vs_budget.png`, `frame_vs_budget.png` and `summary.json`, which names
-//! the knee: the budget past which more triangles buy the least PSNR (the point of the PSNR
-//! curve over log P furthest above the chord between its ends).
+//! the knee, the budget past which more triangles buy the least PSNR (the point of the PSNR
+//! curve over log P furthest above the chord between its ends; none where the curve never
+//! bends that way), and the cheapest budget whose median PSNR reaches `--good-psnr` (40 dB by
+//! default).
 //!
 //! **The controller** (`--target-ms T`): plays the path under `PolygonBudget::target_ms(T,
 //! --min..=--max)` and at a fixed `--budget P`, interleaved `--repeat` times. At frame
@@ -106,6 +108,9 @@ struct Args {
     /// Aim at frames of this many milliseconds instead of sweeping.
     #[arg(long, value_name = "MS")]
     target_ms: Option<f32>,
+    /// The PSNR (dB) against full detail a budget must reach to be suggested as good enough.
+    #[arg(long, default_value_t = 40.0, conflicts_with = "target_ms")]
+    good_psnr: f64,
     /// With `--target-ms`: the fixed budget run beside it (default: a quarter of full detail
     /// for the terrain and a glTF, 100,000 for the crowd).
     #[arg(long, requires = "target_ms")]
@@ -342,7 +347,7 @@ impl Scene {
         let (centre, extent) = ((lo + hi) * 0.5, (hi - lo).length().max(1e-3));
         self.path = Box::new(move |u| {
             let angle = u * std::f32::consts::TAU;
-            let radius = extent * (1.6 - 0.9 * (u * std::f32::consts::PI).sin());
+            let radius = extent * (1.8 - 0.8 * (u * std::f32::consts::PI).sin());
             let eye = centre + Vec3::new(angle.sin() * radius, 0.25 * extent, angle.cos() * radius);
             Transform::from_translation(eye).looking_at(centre, Vec3::Y)
         });
@@ -686,9 +691,12 @@ fn machine() -> String {
 
 fn sweep(scene: &mut Scene, args: &Args) -> Result<(), String> {
     let mut budgets = if args.budgets.is_empty() {
+        // Budgets under the floor (every model at its coarsest) all draw the floor.
         (1..=8)
             .rev()
-            .map(|k| (scene.full >> k).max(1) as u32)
+            .map(|k| (scene.full >> k).max(1))
+            .filter(|&p| p >= scene.floor)
+            .map(|p| p.min(u64::from(u32::MAX)) as u32)
             .collect()
     } else {
         args.budgets.clone()
@@ -786,20 +794,39 @@ fn sweep(scene: &mut Scene, args: &Args) -> Result<(), String> {
     write(&args.out.join("frames.csv"), &frames_csv)?;
     let (swept, reference) = points.split_at(points.len() - 1);
     let knee = knee(swept);
+    let good = swept.iter().position(|p| p.psnr >= args.good_psnr);
+    let marks: Vec<(usize, String)> = knee
+        .map(|k| (k, format!("knee: P = {}", swept[k].budget)))
+        .into_iter()
+        .chain(good.map(|g| {
+            (
+                g,
+                format!("first at {} dB: P = {}", args.good_psnr, swept[g].budget),
+            )
+        }))
+        .collect();
     charts::error_vs_budget(
         &args.out.join("error_vs_budget.png"),
         swept,
-        knee,
+        &marks,
         &args.scene,
     )?;
     charts::frame_vs_budget(
         &args.out.join("frame_vs_budget.png"),
         swept,
         &reference[0],
-        knee,
+        &marks,
         &args.scene,
         args.size,
     )?;
+    let mark = |i: Option<usize>| {
+        i.map(|k| {
+            json!({
+                "budget": swept[k].budget, "median_ms": swept[k].median_ms,
+                "psnr_median": swept[k].psnr,
+            })
+        })
+    };
     let summary = json!({
         "scene": args.scene,
         "machine": machine(),
@@ -814,10 +841,9 @@ fn sweep(scene: &mut Scene, args: &Args) -> Result<(), String> {
             "budget": p.budget, "median_ms": p.median_ms, "p95_ms": p.p95_ms,
             "triangles": p.triangles, "psnr_median": p.psnr, "psnr_worst": p.psnr_worst,
         })).collect::<Vec<_>>(),
-        "knee": knee.map(|k| json!({
-            "budget": swept[k].budget, "median_ms": swept[k].median_ms,
-            "psnr_median": swept[k].psnr,
-        })),
+        "knee": mark(knee),
+        "good_psnr": args.good_psnr,
+        "first_good": mark(good),
     });
     write(
         &args.out.join("summary.json"),
@@ -830,6 +856,13 @@ fn sweep(scene: &mut Scene, args: &Args) -> Result<(), String> {
             swept[k].budget, swept[k].psnr, swept[k].median_ms
         ),
         None => println!("knee: none (fewer than three budgets, or none above the chord)"),
+    }
+    match good {
+        Some(g) => println!(
+            "first budget at {} dB: P = {} ({:.1} dB, median frame {:.1} ms)",
+            args.good_psnr, swept[g].budget, swept[g].psnr, swept[g].median_ms
+        ),
+        None => println!("no budget reaches {} dB", args.good_psnr),
     }
     Ok(())
 }
@@ -1075,15 +1108,18 @@ mod charts {
     use plotters::prelude::*;
     use std::path::Path;
 
+    /// The colours of the marked budgets (the knee, the first good one).
+    const MARKS: [RGBColor; 2] = [BLACK, RGBColor(0, 140, 0)];
+
     fn err(e: impl std::fmt::Display) -> String {
         e.to_string()
     }
 
-    /// PSNR against full detail over P (log scale), the knee marked.
+    /// PSNR against full detail over P (log scale), the suggested budgets marked.
     pub fn error_vs_budget(
         path: &Path,
         points: &[Point],
-        knee: Option<usize>,
+        marks: &[(usize, String)],
         scene: &str,
     ) -> Result<(), String> {
         let lo = points.first().map_or(1, |p| p.budget).max(1) as f64;
@@ -1132,17 +1168,17 @@ mod charts {
                 .map_err(err)?
                 .label("worst view")
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE.mix(0.6)));
-            if let Some(k) = knee {
-                let p = points[k];
+            for ((k, label), color) in marks.iter().zip(MARKS) {
+                let p = points[*k];
                 chart
                     .draw_series([Circle::new(
                         (p.budget as f64, p.psnr.min(60.0)),
                         7,
-                        BLACK.stroke_width(2),
+                        color.stroke_width(2),
                     )])
                     .map_err(err)?
-                    .label(format!("knee: P = {}", p.budget))
-                    .legend(|(x, y)| Circle::new((x + 10, y), 5, BLACK.stroke_width(2)));
+                    .label(label.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.stroke_width(2)));
             }
             chart
                 .configure_series_labels()
@@ -1160,7 +1196,7 @@ mod charts {
         path: &Path,
         points: &[Point],
         full: &Point,
-        knee: Option<usize>,
+        marks: &[(usize, String)],
         scene: &str,
         size: (u32, u32),
     ) -> Result<(), String> {
@@ -1214,17 +1250,17 @@ mod charts {
                 .map_err(err)?
                 .label(format!("full detail ({} triangles), median", full.budget))
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE));
-            if let Some(k) = knee {
-                let p = points[k];
+            for ((k, label), color) in marks.iter().zip(MARKS) {
+                let p = points[*k];
                 chart
                     .draw_series([Circle::new(
                         (p.budget as f64, p.median_ms),
                         7,
-                        BLACK.stroke_width(2),
+                        color.stroke_width(2),
                     )])
                     .map_err(err)?
-                    .label(format!("knee: P = {}", p.budget))
-                    .legend(|(x, y)| Circle::new((x + 10, y), 5, BLACK.stroke_width(2)));
+                    .label(label.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.stroke_width(2)));
             }
             chart
                 .configure_series_labels()

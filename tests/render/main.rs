@@ -8,6 +8,7 @@ mod example_run;
 
 mod aerobic_class;
 mod basic;
+mod budget_tuning;
 mod geomorph;
 mod level_changes;
 mod silvretta;
