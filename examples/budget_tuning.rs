@@ -1105,6 +1105,8 @@ fn steady_moves(rows: &[Row], t: f64) -> Vec<f64> {
 mod charts {
     use super::{Point, Row};
     use crate::common::chart::draw;
+    use plotters::coord::combinators::LogCoord;
+    use plotters::coord::types::RangedCoordf64;
     use plotters::prelude::*;
     use std::path::Path;
 
@@ -1113,6 +1115,40 @@ mod charts {
 
     fn err(e: impl std::fmt::Display) -> String {
         e.to_string()
+    }
+
+    /// A chart over P on a log scale.
+    type BudgetChart<'a, 'b> =
+        ChartContext<'a, BitMapBackend<'b>, Cartesian2d<LogCoord<f64>, RangedCoordf64>>;
+
+    /// Circles the marked budgets at `y` and draws the legend at `position`.
+    fn marks_and_legend<'a, 'b: 'a>(
+        chart: &mut BudgetChart<'a, 'b>,
+        points: &[Point],
+        marks: &[(usize, String)],
+        y: fn(&Point) -> f64,
+        position: SeriesLabelPosition,
+    ) -> Result<(), String> {
+        for ((k, label), color) in marks.iter().zip(MARKS) {
+            let p = &points[*k];
+            chart
+                .draw_series([Circle::new(
+                    (p.budget as f64, y(p)),
+                    7,
+                    color.stroke_width(2),
+                )])
+                .map_err(err)?
+                .label(label.as_str())
+                .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .position(position)
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.9))
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(err)
     }
 
     /// PSNR against full detail over P (log scale), the suggested budgets marked.
@@ -1168,26 +1204,13 @@ mod charts {
                 .map_err(err)?
                 .label("worst view")
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE.mix(0.6)));
-            for ((k, label), color) in marks.iter().zip(MARKS) {
-                let p = points[*k];
-                chart
-                    .draw_series([Circle::new(
-                        (p.budget as f64, p.psnr.min(60.0)),
-                        7,
-                        color.stroke_width(2),
-                    )])
-                    .map_err(err)?
-                    .label(label.as_str())
-                    .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.stroke_width(2)));
-            }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerRight)
-                .border_style(BLACK)
-                .background_style(WHITE.mix(0.9))
-                .label_font(("sans-serif", 16))
-                .draw()
-                .map_err(err)
+            marks_and_legend(
+                &mut chart,
+                points,
+                marks,
+                |p| p.psnr.min(60.0),
+                SeriesLabelPosition::LowerRight,
+            )
         })
     }
 
@@ -1250,26 +1273,13 @@ mod charts {
                 .map_err(err)?
                 .label(format!("full detail ({} triangles), median", full.budget))
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE));
-            for ((k, label), color) in marks.iter().zip(MARKS) {
-                let p = points[*k];
-                chart
-                    .draw_series([Circle::new(
-                        (p.budget as f64, p.median_ms),
-                        7,
-                        color.stroke_width(2),
-                    )])
-                    .map_err(err)?
-                    .label(label.as_str())
-                    .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.stroke_width(2)));
-            }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperLeft)
-                .border_style(BLACK)
-                .background_style(WHITE.mix(0.9))
-                .label_font(("sans-serif", 16))
-                .draw()
-                .map_err(err)
+            marks_and_legend(
+                &mut chart,
+                points,
+                marks,
+                |p| p.median_ms,
+                SeriesLabelPosition::UpperLeft,
+            )
         })
     }
 

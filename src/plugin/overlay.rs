@@ -250,8 +250,11 @@ fn set_label(mut text: Mut<Text>, mut node: Mut<Node>, pixel: Vec2, count: usize
     }
 }
 
+/// The overlay's text nodes: the labels and the status line.
+type OverlayText = Or<(With<OverlayLabel>, With<OverlayStatus>)>;
+
 /// Hides the labels and the status line while the overlay is off.
-fn hide_labels(mut labels: Query<&mut Visibility, Or<(With<OverlayLabel>, With<OverlayStatus>)>>) {
+fn hide_labels(mut labels: Query<&mut Visibility, OverlayText>) {
     for mut visibility in &mut labels {
         visibility.set_if_neq(Visibility::Hidden);
     }
