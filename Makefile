@@ -22,20 +22,20 @@ deps:
 # out/aerobic_class (frames.csv, frame_time.png, allocation.png, screenshots, summary.json).
 demo: deps
 	@if [ -n "$$DISPLAY$$WAYLAND_DISPLAY" ]; then \
-		$(CARGO) run --example aerobic_class; \
+		$(CARGO) run --features ui --example aerobic_class; \
 	else \
 		echo "no display: rendering headless into out/aerobic_class"; \
-		$(CARGO) run --example aerobic_class -- --headless --frames 120 --report out/aerobic_class && \
+		$(CARGO) run --features ui --example aerobic_class -- --headless --frames 120 --report out/aerobic_class && \
 		cat out/aerobic_class/summary.json; \
 	fi
 
 # The Silvretta terrain (ASLOD Figure 8), the same way, into out/silvretta.
 silvretta: deps
 	@if [ -n "$$DISPLAY$$WAYLAND_DISPLAY" ]; then \
-		$(CARGO) run --example silvretta; \
+		$(CARGO) run --features ui --example silvretta; \
 	else \
 		echo "no display: rendering headless into out/silvretta"; \
-		$(CARGO) run --example silvretta -- --headless --frames 10 --screenshot out/silvretta && \
+		$(CARGO) run --features ui --example silvretta -- --headless --frames 10 --screenshot out/silvretta && \
 		cat out/silvretta/counts.json; \
 	fi
 
@@ -53,13 +53,21 @@ test: deps check-deps
 # bevy_mikktspace, which Bevy has anyway, and crc32fast, which gltf's PNG decoder has), so no
 # meshopt (a C++ build), clap or indicatif: those are the `cli` feature's.
 DEFAULT_DEPS := bevy bevy_mikktspace bytemuck crc32fast glam gltf half log thiserror
+# The Bevy features the plugin asks for (Cargo.toml): no windowing, input, UI or audio.
+BEVY_FEATURES := async_executor bevy_asset bevy_core_pipeline bevy_gizmos bevy_log bevy_pbr bevy_render multi_threaded std
 check-deps:
 	@direct=$$($(CARGO) tree -e normal --depth 1 --prefix none --format '{p}' | sed 1d | cut -d' ' -f1 | sort -u | tr '\n' ' '); \
 	if [ "$$direct" != "$(DEFAULT_DEPS) " ]; then \
 		echo "the default build's dependencies are [$$direct], expected [$(DEFAULT_DEPS)]"; exit 1; fi; \
 	if $(CARGO) tree -e normal --prefix none --format '{p}' | grep -q '^meshopt'; then \
 		echo "the default build compiles meshopt (C++)"; exit 1; fi; \
-	echo "default dependencies: $$direct"
+	echo "default dependencies: $$direct"; \
+	features=$$($(CARGO) tree -e normal,features -i bevy --prefix none --format '{p}' | sed -n 's/^bevy feature "\(.*\)".*/\1/p' | sort -u | tr '\n' ' '); \
+	if [ "$$features" != "$(BEVY_FEATURES) " ]; then \
+		echo "the default build asks Bevy for [$$features], expected [$(BEVY_FEATURES)]"; exit 1; fi; \
+	if $(CARGO) tree -e normal --prefix none --format '{p}' | grep -qE '^(winit|gilrs|x11|wayland|bevy_ui|bevy_text|bevy_picking|bevy_audio) '; then \
+		echo "the default build pulls windowing, input, UI or audio"; exit 1; fi; \
+	echo "Bevy features: $$features"
 
 lint:
 	$(CARGO) fmt --all -- --check

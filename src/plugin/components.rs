@@ -197,7 +197,7 @@ impl Default for AslodViewport {
 }
 
 /// Whether the debug overlay is on (ASLOD Figure 10): each region's world box, coloured from
-/// blue (coarsest) to red (full detail), and its triangle count as a label ([`OverlayLabel`](super::OverlayLabel)
+/// blue (coarsest) to red (full detail), and with the crate's `ui` feature its triangle count as a label ([`OverlayLabel`](super::OverlayLabel)
 /// UI nodes, at most [`MAX_OVERLAY_LABELS`](super::MAX_OVERLAY_LABELS)). Needs `GizmoPlugin`, part of `DefaultPlugins`.
 #[derive(Resource, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[reflect(Resource, Default)]

@@ -8,6 +8,7 @@ use super::sets::AslodSystems;
 use super::view_dependent::ViewDependentState;
 use crate::bounds::Obb;
 use crate::budget::ControllerState;
+#[cfg(feature = "ui")]
 use bevy::camera::Camera;
 use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
@@ -15,28 +16,39 @@ use bevy::prelude::*;
 /// The most labels shown at once (the nearest regions win), so a crowd stays readable.
 pub const MAX_OVERLAY_LABELS: usize = 256;
 
-/// Adds the overlay systems when gizmos are available (so headless apps without them work).
+/// Adds the overlay systems when gizmos are available (so headless apps without them work):
+/// the boxes, and with the crate's `ui` feature the labels and the status line.
 pub(super) fn add_if_gizmos(app: &mut App) {
-    if app.world().contains_resource::<GizmoConfigStore>() {
-        app.add_systems(
-            PostUpdate,
-            (draw_overlay, place_labels, show_status)
-                .after(AslodSystems::Upload)
-                .run_if(|overlay: Res<AslodOverlay>| overlay.0),
-        )
-        .add_systems(
-            PostUpdate,
-            hide_labels.run_if(|overlay: Res<AslodOverlay>| !overlay.0),
-        );
+    if !app.world().contains_resource::<GizmoConfigStore>() {
+        return;
     }
+    app.add_systems(
+        PostUpdate,
+        draw_overlay
+            .after(AslodSystems::Upload)
+            .run_if(|overlay: Res<AslodOverlay>| overlay.0),
+    );
+    #[cfg(feature = "ui")]
+    app.add_systems(
+        PostUpdate,
+        (place_labels, show_status)
+            .after(AslodSystems::Upload)
+            .run_if(|overlay: Res<AslodOverlay>| overlay.0),
+    )
+    .add_systems(
+        PostUpdate,
+        hide_labels.run_if(|overlay: Res<AslodOverlay>| !overlay.0),
+    );
 }
 
-/// A UI text node of the overlay that shows one region's triangle count.
+/// A UI text node of the overlay that shows one region's triangle count (with the crate's
+/// `ui` feature).
 #[derive(Component, Reflect, Debug, Default)]
 #[reflect(Component, Default)]
 pub struct OverlayLabel;
 
-/// The overlay's status line (top right): [`status_line`] of the frame's [`AslodStats`].
+/// The overlay's status line (top right, with the crate's `ui` feature): [`status_line`] of
+/// the frame's [`AslodStats`].
 #[derive(Component, Reflect, Debug, Default)]
 #[reflect(Component, Default)]
 pub struct OverlayStatus;
@@ -69,6 +81,7 @@ pub fn status_line(stats: &AslodStats) -> String {
     line
 }
 
+#[cfg(feature = "ui")]
 /// Writes the status line into its text node (made on first use).
 fn show_status(
     mut commands: Commands,
@@ -180,6 +193,7 @@ fn draw_overlay(models: Query<ModelItem<'static>>, mut gizmos: Gizmos) {
     }
 }
 
+#[cfg(feature = "ui")]
 /// Puts a label with the triangle count at the centre of each region's box, as seen by the
 /// first active camera; the nearest [`MAX_OVERLAY_LABELS`] regions whose centre is in its
 /// viewport get one.
@@ -237,6 +251,7 @@ fn place_labels(
     }
 }
 
+#[cfg(feature = "ui")]
 /// Moves and rewrites a label, touching (and so re-laying out) only what changed.
 fn set_label(mut text: Mut<Text>, mut node: Mut<Node>, pixel: Vec2, count: usize) {
     let (left, top) = (Val::Px(pixel.x), Val::Px(pixel.y));
@@ -250,9 +265,11 @@ fn set_label(mut text: Mut<Text>, mut node: Mut<Node>, pixel: Vec2, count: usize
     }
 }
 
+#[cfg(feature = "ui")]
 /// The overlay's text nodes: the labels and the status line.
 type OverlayText = Or<(With<OverlayLabel>, With<OverlayStatus>)>;
 
+#[cfg(feature = "ui")]
 /// Hides the labels and the status line while the overlay is off.
 fn hide_labels(mut labels: Query<&mut Visibility, OverlayText>) {
     for mut visibility in &mut labels {

@@ -19,6 +19,7 @@ pub fn example_binary(name: &str) -> PathBuf {
     // The features this test was built with, so the library is not built a second time.
     let features: Vec<&str> = [
         ("bevy", cfg!(feature = "bevy")),
+        ("ui", cfg!(feature = "ui")),
         ("cli", cfg!(feature = "cli")),
         ("mannequin", cfg!(feature = "mannequin")),
         ("distance", cfg!(feature = "distance")),
