@@ -46,8 +46,8 @@ use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy::world_serialization::{WorldAsset, WorldAssetRoot};
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, FullDetail, MultiresInstance, MultiresMesh, MultiresModel,
-    MultiresScene, MultiresSceneModels, PolygonBudget,
+    AslodPlugin, AslodStats, FrameSource, FullDetail, MultiresInstance, MultiresMesh,
+    MultiresModel, MultiresScene, MultiresSceneModels, PolygonBudget,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use clap::Parser;
@@ -128,6 +128,10 @@ struct Args {
     /// With `--target-ms`: no load step.
     #[arg(long, requires = "target_ms")]
     no_step: bool,
+    /// With `--target-ms`: Bevy's `RenderDiagnosticsPlugin`, so the controller reads GPU
+    /// timestamps where the device has them (`FrameSource::GpuTimestamps`).
+    #[arg(long, requires = "target_ms")]
+    gpu_timestamps: bool,
 }
 
 fn main() {
@@ -209,6 +213,9 @@ impl Scene {
         };
         let mut app = common::offscreen_app(root.as_deref());
         app.add_plugins(AslodPlugin::default());
+        if args.gpu_timestamps {
+            app.add_plugins(bevy::render::diagnostic::RenderDiagnosticsPlugin);
+        }
         app.finish();
         app.cleanup();
         // The controller reads the real frame time (a manual clock would give it 1/60 s).
@@ -630,6 +637,7 @@ struct Row {
     /// The controller's smoothed frame time (0 without a target).
     smoothed_ms: f32,
     state: bevy_aslod::budget::ControllerState,
+    source: FrameSource,
 }
 
 /// Plays the path: warm-up frames at its start, then `frames` measured ones, the load step's
@@ -653,6 +661,7 @@ fn play(scene: &mut Scene, frames: u32, step: Option<u32>) -> Vec<Row> {
             triangles: stats.triangles,
             smoothed_ms: stats.frame_ms,
             state: stats.controller,
+            source: stats.frame_source,
         });
     }
     scene.unstep();
@@ -982,13 +991,14 @@ fn control(scene: &mut Scene, args: &Args, target_ms: f32) -> Result<(), String>
         scene.unstep();
         scene.set_target(&scene.small.clone());
     }
-    let mut csv = String::from("way,run,frame,frame_ms,budget,triangles,smoothed_ms,state\n");
+    let mut csv =
+        String::from("way,run,frame,frame_ms,budget,triangles,smoothed_ms,state,source\n");
     for (way, runs) in [("fixed", &fixed_runs), ("target", &control_runs)] {
         for (run, rows) in runs.iter().enumerate() {
             for r in rows {
                 csv += &format!(
-                    "{way},{run},{},{:.3},{},{},{:.3},{:?}\n",
-                    r.frame, r.ms, r.budget, r.triangles, r.smoothed_ms, r.state
+                    "{way},{run},{},{:.3},{},{},{:.3},{:?},{:?}\n",
+                    r.frame, r.ms, r.budget, r.triangles, r.smoothed_ms, r.state, r.source
                 );
             }
         }
@@ -1021,6 +1031,7 @@ fn control(scene: &mut Scene, args: &Args, target_ms: f32) -> Result<(), String>
         "step_at": step,
         "step_models": STEP_MODELS,
         "target_ms": t,
+        "frame_source": format!("{:?}", control_runs.iter().flatten().last().map_or(FrameSource::None, |r| r.source)),
         "range": [min, max],
         "floor_triangles": floor,
         "fixed": {

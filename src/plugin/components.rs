@@ -243,9 +243,11 @@ pub struct AslodStats {
     pub shared_meshes: usize,
     /// The frame time [`PolygonBudget::frame_target`] aims at (`0` without one).
     pub target_ms: f32,
-    /// The frame time the controller measured, smoothed over a few frames: the whole frame's
-    /// wall time from `Time<Real>` (`0` without a target).
+    /// The frame time the controller measured, smoothed over a few frames, from
+    /// [`frame_source`](Self::frame_source) (`0` without a target).
     pub frame_ms: f32,
     /// What the frame-time controller is doing.
     pub controller: ControllerState,
+    /// Where the frame time it measures comes from.
+    pub frame_source: super::FrameSource,
 }

@@ -88,6 +88,7 @@ pub use components::{
     AslodOverlay, AslodStats, AslodViewport, CountInBudget, FrameTarget, FullDetail, Geomorph,
     LodPriority, LodRegion, MultiresModel, PolygonBudget, ViewDependentLevel,
 };
+pub use control::FrameSource;
 pub use error::MultiresError;
 pub use geomorph::{
     ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, ATTRIBUTE_MORPH_TANGENT_FROM,
@@ -208,6 +209,7 @@ impl Plugin for AslodPlugin {
             .register_type::<FullDetail>()
             .register_type::<AslodOverlay>()
             .register_type::<AslodStats>()
+            .register_type::<FrameSource>()
             .register_type::<AslodViewport>()
             .register_type::<RegionUpload>()
             .register_type::<RegionUploadStats>()
@@ -239,6 +241,7 @@ impl Plugin for AslodPlugin {
             .init_resource::<FullDetail>()
             .init_resource::<AslodStats>()
             .init_resource::<control::BudgetControl>()
+            .init_resource::<control::MainWorldClock>()
             .init_resource::<cameras::FrameCameras>()
             .init_resource::<allocate::FrameAllocation>()
             .init_resource::<allocate::AllocatorScratch>()
@@ -267,6 +270,8 @@ impl Plugin for AslodPlugin {
                 // Level meshes `Upload` makes are extracted in the frame that asked for them.
                 .before(bevy::asset::AssetEventSystems),
         )
+        .add_systems(First, control::start_main_clock)
+        .add_systems(Last, control::stop_main_clock)
         .configure_sets(
             PostUpdate,
             MaterialSystems

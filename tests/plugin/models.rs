@@ -975,3 +975,71 @@ fn a_frame_time_target_moves_the_budget_within_its_bounds() {
     assert_eq!(app.world().resource::<PolygonBudget>().total, 1_234);
     assert_eq!(stats(&app).target_ms, 0.0);
 }
+
+/// A GPU span's time, fed into the store each frame as `RenderDiagnosticsPlugin` would.
+#[derive(Resource, Clone, Copy)]
+struct FakeGpu(Option<f64>);
+
+fn feed_gpu(gpu: Res<FakeGpu>, mut store: ResMut<bevy::diagnostic::DiagnosticsStore>) {
+    use bevy::diagnostic::{Diagnostic, DiagnosticMeasurement, DiagnosticPath};
+    let Some(ms) = gpu.0 else { return };
+    // A top-level span, counted; a nested one, which is part of it, and a CPU one, not.
+    for (path, value) in [
+        ("render/main_pass/elapsed_gpu", ms),
+        ("render/main_pass/shadows/elapsed_gpu", 50.0),
+        ("render/main_pass/elapsed_cpu", 50.0),
+    ] {
+        let path = DiagnosticPath::new(path);
+        if store.get(&path).is_none() {
+            store.add(Diagnostic::new(path.clone()));
+        }
+        store
+            .get_mut(&path)
+            .expect("added")
+            .add_measurement(DiagnosticMeasurement {
+                time: bevy::platform::time::Instant::now(),
+                value,
+            });
+    }
+}
+
+#[test]
+fn gpu_timestamps_drive_the_target_when_they_come() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_aslod::plugin::FrameSource;
+    use std::time::Duration;
+    let mut app = app(2_000);
+    let handle = add_asset(&mut app);
+    spawn_camera(&mut app, Vec3::new(0.0, 10.0, 20.0));
+    spawn_model(&mut app, &handle, Vec3::ZERO);
+    let (min, max) = (coarsest(&app, &handle) as u32 + 100, 50_000);
+    app.insert_resource(PolygonBudget::target_ms(10.0, min..=max))
+        .insert_resource(FakeGpu(None))
+        .add_systems(PreUpdate, feed_gpu)
+        // Frames of 20 ms by the wall clock, as under a 50 Hz vsync.
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+            20,
+        )));
+    let run = |app: &mut App, frames: usize| {
+        for _ in 0..frames {
+            app.update();
+            let p = app.world().resource::<PolygonBudget>().total;
+            assert!((min..=max).contains(&p), "P = {p}");
+        }
+        let s = stats(app);
+        (
+            app.world().resource::<PolygonBudget>().total,
+            s.frame_source,
+        )
+    };
+    // The wall time alone: 20 ms against 10, P falls to its minimum.
+    assert_eq!(run(&mut app, 60), (min, FrameSource::FrameDelta));
+    // The GPU takes 2 ms (the 50 ms nested and CPU spans are not counted): P rises to its
+    // maximum although every frame still lasts 20 ms.
+    app.world_mut().resource_mut::<FakeGpu>().0 = Some(2.0);
+    assert_eq!(run(&mut app, 60), (max, FrameSource::GpuTimestamps));
+    assert!(stats(&app).frame_ms < 5.0, "{}", stats(&app).frame_ms);
+    // The timestamps stop: after a few frames the wall time is read again.
+    app.world_mut().resource_mut::<FakeGpu>().0 = None;
+    assert_eq!(run(&mut app, 60), (min, FrameSource::FrameDelta));
+}
