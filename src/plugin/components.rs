@@ -249,5 +249,23 @@ pub struct AslodStats {
     /// What the frame-time controller is doing.
     pub controller: ControllerState,
     /// Where the frame time it measures comes from.
-    pub frame_source: super::FrameSource,
+    pub frame_source: FrameSource,
+}
+
+/// Where the frame time the controller holds to its target comes from
+/// ([`AslodStats::frame_source`]).
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Default)]
+pub enum FrameSource {
+    /// No frame-time target.
+    #[default]
+    None,
+    /// The frame's wall time, `Time<Real>`'s delta: everything the frame waited for, vsync
+    /// included.
+    FrameDelta,
+    /// GPU timestamps: the larger of the GPU's time for a frame (the sum of Bevy's top-level
+    /// render spans, `render/*/elapsed_gpu`, which `RenderDiagnosticsPlugin` reads back a few
+    /// frames late) and the main world's CPU time for the last frame (`First` to `Last`).
+    /// Waits for vsync are not in it; the render world's CPU time is not either.
+    GpuTimestamps,
 }

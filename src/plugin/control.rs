@@ -5,30 +5,12 @@
 //! the app has Bevy's `RenderDiagnosticsPlugin` and the device has timestamp queries, else
 //! from the frame's wall time.
 
-use super::components::{AslodStats, FrameTarget, PolygonBudget};
+use super::components::{AslodStats, FrameSource, FrameTarget, PolygonBudget};
 use super::diagnostics;
 use crate::budget::{ControllerState, FrameTimeController};
 use bevy::diagnostic::{Diagnostics, DiagnosticsStore};
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
-
-/// Where the frame time the controller holds to its target comes from
-/// ([`AslodStats::frame_source`]).
-#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[reflect(Default)]
-pub enum FrameSource {
-    /// No frame-time target.
-    #[default]
-    None,
-    /// The frame's wall time, `Time<Real>`'s delta: everything the frame waited for, vsync
-    /// included.
-    FrameDelta,
-    /// GPU timestamps: the larger of the GPU's time for a frame (the sum of Bevy's top-level
-    /// render spans, `render/*/elapsed_gpu`, which `RenderDiagnosticsPlugin` reads back a few
-    /// frames late) and the main world's CPU time for the last frame (`First` to `Last`).
-    /// Waits for vsync are not in it; the render world's CPU time is not either.
-    GpuTimestamps,
-}
 
 /// Frames without a fresh GPU timestamp after which the controller reads the wall time again.
 const GPU_SILENCE: u32 = 8;
@@ -52,13 +34,21 @@ pub(crate) struct MainWorldClock {
     last_ms: Option<f32>,
 }
 
+/// The controller's resources, and the main world's clock in `First` and `Last`.
+pub(super) fn add(app: &mut App) {
+    app.init_resource::<BudgetControl>()
+        .init_resource::<MainWorldClock>()
+        .add_systems(First, start_main_clock)
+        .add_systems(Last, stop_main_clock);
+}
+
 /// Starts the main world's clock (in `First`).
-pub(crate) fn start_main_clock(mut clock: ResMut<MainWorldClock>) {
+fn start_main_clock(mut clock: ResMut<MainWorldClock>) {
     clock.start = Some(Instant::now());
 }
 
 /// Stops it (in `Last`).
-pub(crate) fn stop_main_clock(mut clock: ResMut<MainWorldClock>) {
+fn stop_main_clock(mut clock: ResMut<MainWorldClock>) {
     if let Some(start) = clock.start.take() {
         clock.last_ms = Some(start.elapsed().as_secs_f32() * 1e3);
     }

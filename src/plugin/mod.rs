@@ -85,10 +85,9 @@ pub use cameras::{LodCameraWeight, NoLodAllocation, RefineCamera};
 /// [`ViewDependentLevel`] under the name of what it draws, a variable-resolution level.
 pub use components::ViewDependentLevel as VariableLevel;
 pub use components::{
-    AslodOverlay, AslodStats, AslodViewport, CountInBudget, FrameTarget, FullDetail, Geomorph,
-    LodPriority, LodRegion, MultiresModel, PolygonBudget, ViewDependentLevel,
+    AslodOverlay, AslodStats, AslodViewport, CountInBudget, FrameSource, FrameTarget, FullDetail,
+    Geomorph, LodPriority, LodRegion, MultiresModel, PolygonBudget, ViewDependentLevel,
 };
-pub use control::FrameSource;
 pub use error::MultiresError;
 pub use geomorph::{
     ATTRIBUTE_MORPH_FROM, ATTRIBUTE_MORPH_NORMAL_FROM, ATTRIBUTE_MORPH_TANGENT_FROM,
@@ -240,8 +239,6 @@ impl Plugin for AslodPlugin {
             .insert_resource(AslodOverlay(self.overlay))
             .init_resource::<FullDetail>()
             .init_resource::<AslodStats>()
-            .init_resource::<control::BudgetControl>()
-            .init_resource::<control::MainWorldClock>()
             .init_resource::<cameras::FrameCameras>()
             .init_resource::<allocate::FrameAllocation>()
             .init_resource::<allocate::AllocatorScratch>()
@@ -252,6 +249,7 @@ impl Plugin for AslodPlugin {
             .init_resource::<shared::SharedMeshes>()
             .add_observer(spawn::remove_region_meshes);
         diagnostics::register(app);
+        control::add(app);
         app.configure_sets(
             PostUpdate,
             AslodSystems::Spawn.before(TransformSystems::Propagate),
@@ -270,8 +268,6 @@ impl Plugin for AslodPlugin {
                 // Level meshes `Upload` makes are extracted in the frame that asked for them.
                 .before(bevy::asset::AssetEventSystems),
         )
-        .add_systems(First, control::start_main_clock)
-        .add_systems(Last, control::stop_main_clock)
         .configure_sets(
             PostUpdate,
             MaterialSystems
