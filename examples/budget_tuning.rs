@@ -180,9 +180,6 @@ struct Scene {
     floor_with_step: u64,
     /// Where the load step's models go.
     step_places: Vec<Vec3>,
-    /// The crowd's or the glTF's scene and clip (dancers spawned by the load step dance too).
-    scene: Option<Handle<WorldAsset>>,
-    gltf: Option<Handle<Gltf>>,
     multires: MultiresScene,
     /// The step's models, while they live.
     spawned: Vec<Entity>,
@@ -257,8 +254,6 @@ impl Scene {
             floor: 0,
             floor_with_step: 0,
             step_places: Vec::new(),
-            scene: None,
-            gltf: None,
             multires: MultiresScene::default(),
             spawned: Vec::new(),
             rock: None,
@@ -387,7 +382,6 @@ impl Scene {
         let gltf: Handle<Gltf> = server.load(file.to_string());
         let scene = server.load(GltfAssetLabel::Scene(0).from_asset(file.to_string()));
         let roots = self.spawn_roots(&scene, at);
-        self.scene = Some(scene);
         let start = Instant::now();
         loop {
             self.app.update();
@@ -422,7 +416,6 @@ impl Scene {
                 return Err(format!("{file} did not load and convert in five minutes"));
             }
         }
-        self.gltf = Some(gltf);
         Ok(())
     }
 
