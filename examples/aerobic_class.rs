@@ -42,7 +42,7 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::budget::Obb;
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, CountInBudget, FullDetail, MultiresInstance,
-    MultiresScene, MultiresSceneModels, PolygonBudget,
+    MultiresModelReady, MultiresScene, MultiresSceneModels, PolygonBudget,
 };
 use clap::Parser;
 use common::stats::{CpuTimes, per_frame_medians, series_stats};
@@ -552,9 +552,12 @@ fn bind_players(
     }
 }
 
-/// Once the first dancer is converted and posed, measures it, scales every dancer to
-/// [`DANCER_HEIGHT`] with its feet on the floor, and shows them.
+/// Once every dancer's models are ready (the plugin's [`MultiresModelReady`] messages, read
+/// in the frame after the plugin posed them), measures the first dancer, scales every dancer
+/// to [`DANCER_HEIGHT`] with its feet on the floor, and shows them.
+#[allow(clippy::too_many_arguments)]
 fn place_dancers(
+    mut ready: MessageReader<MultiresModelReady>,
     mut class: ResMut<Class>,
     mut roots: Query<(&mut Transform, &mut Visibility, &MultiresSceneModels), With<Dancer>>,
     instances: Query<(&MultiresInstance, &GlobalTransform)>,
@@ -562,7 +565,7 @@ fn place_dancers(
     meshes: Query<&Mesh3d>,
     mesh_assets: Res<Assets<Mesh>>,
 ) {
-    if class.placed || class.dancers.is_empty() {
+    if ready.read().count() == 0 || class.placed || class.dancers.is_empty() {
         return;
     }
     if class.dancers.iter().any(|&d| roots.get(d).is_err()) {
@@ -572,7 +575,7 @@ fn place_dancers(
         return;
     };
     let Some((lo, hi)) = common::scene_bounds(models, &instances, &fixed_boxes) else {
-        return; // instances and boxes come a frame or two after the conversion
+        return; // a model of it is not ready yet: its message comes later
     };
     let height = hi.y - lo.y;
     // Measured with the root at layout[0] and scale 1: in the root's space the model spans

@@ -47,13 +47,15 @@ use bevy::time::TimeUpdateStrategy;
 use bevy::world_serialization::{WorldAsset, WorldAssetRoot};
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, FrameSource, FullDetail, MultiresInstance, MultiresMesh,
-    MultiresModel, MultiresScene, MultiresSceneModels, PolygonBudget,
+    MultiresModel, MultiresModelReady, MultiresScene, MultiresSceneConverted, MultiresSceneModels,
+    PolygonBudget,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use clap::Parser;
 use common::stats::median;
 use common::terrain;
 use serde_json::json;
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -382,12 +384,23 @@ impl Scene {
         let gltf: Handle<Gltf> = server.load(file.to_string());
         let scene = server.load(GltfAssetLabel::Scene(0).from_asset(file.to_string()));
         let roots = self.spawn_roots(&scene, at);
+        let mut messages = self
+            .app
+            .world()
+            .resource::<Messages<MultiresSceneConverted>>()
+            .get_cursor();
+        let mut waiting: HashSet<Entity> = roots.iter().copied().collect();
         let start = Instant::now();
         loop {
             self.app.update();
-            let converted = roots
-                .iter()
-                .all(|&r| self.app.world().get::<MultiresSceneModels>(r).is_some());
+            let converted = self
+                .app
+                .world()
+                .resource::<Messages<MultiresSceneConverted>>();
+            for message in messages.read(converted) {
+                waiting.remove(&message.scene);
+            }
+            let converted = waiting.is_empty();
             let loaded = self.app.world().resource::<Assets<Gltf>>().get(&gltf);
             if let (true, Some(loaded)) = (converted, loaded) {
                 if let Some(clip) = loaded.animations.first().cloned() {
@@ -436,10 +449,24 @@ impl Scene {
             .collect()
     }
 
-    /// The world bounds of the converted scenes.
+    /// The world bounds of the converted scenes, measured when the plugin says a model is
+    /// ready ([`MultiresModelReady`]) until every model of every scene is.
     fn bounds(&mut self) -> Result<(Vec3, Vec3), String> {
+        let mut ready = self
+            .app
+            .world()
+            .resource::<Messages<MultiresModelReady>>()
+            .get_cursor();
         for _ in 0..600 {
             self.app.update();
+            let world = self.app.world();
+            if ready
+                .read(world.resource::<Messages<MultiresModelReady>>())
+                .count()
+                == 0
+            {
+                continue;
+            }
             let bounds = self
                 .app
                 .world_mut()
@@ -459,7 +486,7 @@ impl Scene {
                 return Ok(bounds);
             }
         }
-        Err("the scene has no bounds: no mesh of it was drawn".into())
+        Err("the scene has no bounds: not every model of it became ready in 600 frames".into())
     }
 
     /// Triangles with every region at full detail.

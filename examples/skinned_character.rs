@@ -22,7 +22,7 @@ use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, MultiresInstance, MultiresMesh, MultiresModel,
-    MultiresScene, MultiresSceneModels, PolygonBudget,
+    MultiresModelReady, MultiresScene, MultiresSceneModels, PolygonBudget,
 };
 use bevy_aslod::skin::SkinRegionKind;
 use clap::Parser;
@@ -257,15 +257,17 @@ fn play_clip(
     character.clip = Some((graph, node));
 }
 
-/// Measures the character once it is converted and aims the camera at it.
+/// Measures the character once its models are ready (the plugin's [`MultiresModelReady`]
+/// messages) and aims the camera at it.
 fn frame_camera(
+    mut ready: MessageReader<MultiresModelReady>,
     mut character: ResMut<Character>,
     roots: Query<&MultiresSceneModels>,
     instances: Query<(&MultiresInstance, &GlobalTransform)>,
     fixed: Query<(&Aabb, &GlobalTransform)>,
     mut camera: Query<&mut Transform, With<MainCamera>>,
 ) {
-    if character.framed.is_some() {
+    if ready.read().count() == 0 || character.framed.is_some() {
         return;
     }
     let Ok(models) = roots.get(character.root) else {
