@@ -88,9 +88,11 @@ bench-render: deps
 	@for s in grid silvretta aerobic; do \
 		$(CARGO) run --release --quiet --example render_cost -- --scene $$s --frames 60; done
 
-# The long session: 10,000 frames of spawning, despawning and budget changes, headless.
+# The long session: 10,000 frames of spawning, despawning and budget changes, headless, then
+# drawn through Vulkan (lavapipe without a GPU). One at a time: each judges the process's
+# resident memory.
 soak:
-	ASLOD_SOAK_FRAMES=10000 $(CARGO) test --all-features --test plugin soak -- --nocapture
+	ASLOD_SOAK_FRAMES=10000 $(CARGO) test --all-features --test plugin soak -- --nocapture --test-threads=1
 
 # The instance bench: shared levels against meshoptimizer levels under VisibilityRange.
 bench-instances: deps

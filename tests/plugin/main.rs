@@ -6,6 +6,8 @@
 
 mod attributes;
 mod baked;
+#[path = "../render/example_run.rs"]
+mod example_run;
 mod geomorph;
 mod models;
 mod shared;

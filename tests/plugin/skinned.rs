@@ -9,7 +9,8 @@ use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::render::RenderPlugin;
-use bevy::render::settings::{RenderCreation, WgpuSettings};
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::render::settings::{Backends, RenderCreation, WgpuSettings};
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
@@ -32,6 +33,17 @@ pub(crate) fn app(budget: u32, root: &str) -> App {
 
 /// A headless app with `plugin`, loading assets from `root`.
 pub(crate) fn app_with(plugin: AslodPlugin, root: &str) -> App {
+    app_with_backends(plugin, root, None)
+}
+
+/// A headless app with `plugin`, loading assets from `root`, whose renderer uses `backends`
+/// (`None`: no GPU, no render world). With a backend the render world runs inside
+/// `App::update` (no pipelined rendering), so a test can read it after each frame.
+pub(crate) fn app_with_backends(
+    plugin: AslodPlugin,
+    root: &str,
+    backends: Option<Backends>,
+) -> App {
     let mut app = App::new();
     app.add_plugins((
         DefaultPlugins
@@ -41,7 +53,7 @@ pub(crate) fn app_with(plugin: AslodPlugin, root: &str) -> App {
             })
             .set(RenderPlugin {
                 render_creation: RenderCreation::Automatic(Box::new(WgpuSettings {
-                    backends: None,
+                    backends,
                     ..default()
                 })),
                 ..default()
@@ -51,7 +63,8 @@ pub(crate) fn app_with(plugin: AslodPlugin, root: &str) -> App {
                 exit_condition: ExitCondition::DontExit,
                 ..default()
             })
-            .disable::<WinitPlugin>(),
+            .disable::<WinitPlugin>()
+            .disable::<PipelinedRenderingPlugin>(),
         ScheduleRunnerPlugin::run_once(),
     ))
     .add_plugins(plugin)

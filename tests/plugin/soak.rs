@@ -8,10 +8,16 @@
 //! (`make soak`) runs it long; the default is short enough for CI.
 
 use super::baked::{asset_folder, bake_cow};
+use super::example_run::require_vulkan;
 use super::models::{asset, spawn_camera, terrain as patch};
-use super::skinned::app_with;
+use super::skinned::app_with_backends;
 use super::view_dependent::cow;
+use bevy::camera::RenderTarget;
 use bevy::prelude::*;
+use bevy::render::RenderApp;
+use bevy::render::mesh::allocator::MeshAllocator;
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::settings::Backends;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, MultiresMesh, MultiresModel, MultiresModelReady, MultiresScene,
@@ -46,20 +52,60 @@ impl Rng {
     }
 }
 
-#[test]
-fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
-    let frames: usize = std::env::var("ASLOD_SOAK_FRAMES")
+/// Frames to run: `ASLOD_SOAK_FRAMES`, else `default`.
+fn soak_frames(default: usize) -> usize {
+    std::env::var("ASLOD_SOAK_FRAMES")
         .ok()
         .and_then(|f| f.parse().ok())
-        .unwrap_or(600);
+        .unwrap_or(default)
+}
+
+#[test]
+fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
+    soak("soak", soak_frames(600), false);
+}
+
+/// The same session drawn (Vulkan; lavapipe without a GPU) into a small image: the region
+/// meshes go through Bevy's mesh allocator and the plugin's index writes, and once
+/// everything is despawned the allocator holds as many bytes as before the session.
+#[test]
+fn a_long_rendered_session_returns_the_mesh_allocator_to_its_baseline() {
+    if !require_vulkan("rendered soak") {
+        return;
+    }
+    soak("soak-rendered", soak_frames(300), true);
+}
+
+/// Bytes and slabs in the render world's mesh allocator (`None` without a renderer).
+fn allocator_bytes(app: &mut App) -> Option<(u64, usize)> {
+    let render = app.get_sub_app(RenderApp)?;
+    let allocator = render.world().get_resource::<MeshAllocator>()?;
+    Some((allocator.slabs_size(), allocator.slab_count()))
+}
+
+fn soak(name: &str, frames: usize, rendered: bool) {
     // The robot glTF and `cow.mrm`, baked here and re-baked during the session.
-    let dir = asset_folder("soak");
+    let dir = asset_folder(name);
     bake_cow(&dir, "cow.mrm", 4);
-    let mut app = app_with(
+    let mut app = app_with_backends(
         AslodPlugin::default().with_budget(20_000),
         dir.to_str().unwrap(),
+        rendered.then_some(Backends::VULKAN),
     );
     let camera = spawn_camera(&mut app, Vec3::new(0.0, 30.0, 60.0));
+    if rendered {
+        let mut images = app.world_mut().resource_mut::<Assets<Image>>();
+        let image = images.add(Image::new_target_texture(
+            160,
+            90,
+            TextureFormat::Rgba8Unorm,
+            Some(TextureFormat::Rgba8UnormSrgb),
+        ));
+        app.world_mut()
+            .entity_mut(camera)
+            .insert(RenderTarget::Image(image.into()));
+        app.world_mut().spawn(DirectionalLight::default());
+    }
     app.update();
     let counts = |app: &App| {
         (
@@ -68,6 +114,13 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         )
     };
     let baseline = counts(&app);
+    let allocator_baseline = allocator_bytes(&mut app);
+    assert_eq!(
+        allocator_baseline.is_some(),
+        rendered,
+        "a render world with a mesh allocator exactly when rendered"
+    );
+    let mut allocator_peak = allocator_baseline;
     let terrain = app
         .world_mut()
         .resource_mut::<Assets<MultiresMesh>>()
@@ -213,6 +266,7 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         ready.extend(ready_cursor.read(messages).map(|m| (frame, m.asset)));
         let messages = world.resource::<Messages<MultiresSceneConverted>>();
         scenes_converted += scene_cursor.read(messages).count();
+        allocator_peak = allocator_peak.max(allocator_bytes(&mut app));
         let stats = *app.world().resource::<AslodStats>();
         if stats.allocated {
             allocated += 1;
@@ -265,10 +319,11 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         app.world_mut().entity_mut(model).despawn();
     }
     drop((terrain, refined, terrain_3x3, baked, robot));
-    // Loads still under way finish, and what nothing holds is dropped.
+    // Loads still under way finish, and what nothing holds is dropped (the render world
+    // frees a mesh's allocation in the frame after its asset goes).
     for _ in 0..200 {
         app.update();
-        if counts(&app) == baseline {
+        if counts(&app) == baseline && allocator_bytes(&mut app) == allocator_baseline {
             break;
         }
         std::thread::sleep(std::time::Duration::from_millis(5));
@@ -278,5 +333,20 @@ fn a_long_session_holds_the_budget_and_frees_what_it_spawned() {
         baseline,
         "(meshes, multires assets) after everything was despawned"
     );
+    if let (Some(before), Some(peak)) = (allocator_baseline, allocator_peak) {
+        let after = allocator_bytes(&mut app).expect("the render world stays");
+        println!(
+            "soak: mesh allocator {} B in {} slabs before, peak {} B, {} B in {} slabs after",
+            before.0, before.1, peak.0, after.0, after.1
+        );
+        assert!(
+            peak.0 > before.0,
+            "the session drew nothing through the allocator"
+        );
+        assert_eq!(
+            after, before,
+            "mesh allocator (bytes, slabs) after everything was despawned"
+        );
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
