@@ -27,8 +27,8 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::bevy_mesh::from_bevy_mesh;
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{
-    AslodPlugin, FullDetail, MultiresInstance, MultiresScene, MultiresSceneModels,
-    MultiresSourceMesh, PolygonBudget,
+    AslodPlugin, FullDetail, MultiresInstance, MultiresScene, MultiresSceneConverted,
+    MultiresSceneModels, MultiresSourceMesh, PolygonBudget,
 };
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -300,6 +300,12 @@ impl Stage {
                 Transform::from_xyz(0.0, 0.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
             ))
             .id();
+        // The plugin says when our copy is converted.
+        let mut converted_cursor = app
+            .world()
+            .resource::<Messages<MultiresSceneConverted>>()
+            .get_cursor();
+        let mut converted = false;
         let start = Instant::now();
         loop {
             app.update();
@@ -307,7 +313,9 @@ impl Stage {
             let loaded = world
                 .resource::<AssetServer>()
                 .is_loaded_with_dependencies(&gltf);
-            if loaded && world.get::<MultiresSceneModels>(ours).is_some() {
+            let messages = world.resource::<Messages<MultiresSceneConverted>>();
+            converted |= converted_cursor.read(messages).any(|m| m.scene == ours);
+            if loaded && converted {
                 break;
             }
             if start.elapsed() > Duration::from_secs(300) {
