@@ -3,8 +3,9 @@
 //! spawned and despawned, materials, asset handles and the budget changed, an asset replaced
 //! in place and the baked file re-baked and hot-reloaded. The budget holds every frame,
 //! nothing panics, and once everything is despawned the `Mesh` and `MultiresMesh` assets are
-//! back to where they started.
-//! `ASLOD_SOAK_FRAMES=10000 cargo test --release --all-features --test plugin soak`
+//! back to where they started. It runs twice: without a GPU, and drawn through Vulkan
+//! (lavapipe without a GPU), where Bevy's mesh allocator must return to its baseline too.
+//! `ASLOD_SOAK_FRAMES=10000 cargo test --all-features --test plugin soak -- --test-threads=1`
 //! (`make soak`) runs it long; the default is short enough for CI.
 
 use super::baked::{asset_folder, bake_cow};
