@@ -393,11 +393,8 @@ impl Scene {
         let start = Instant::now();
         loop {
             self.app.update();
-            let converted = self
-                .app
-                .world()
-                .resource::<Messages<MultiresSceneConverted>>();
-            for message in messages.read(converted) {
+            let world = self.app.world();
+            for message in messages.read(world.resource::<Messages<MultiresSceneConverted>>()) {
                 waiting.remove(&message.scene);
             }
             let converted = waiting.is_empty();

@@ -78,7 +78,7 @@ fn a_long_rendered_session_returns_the_mesh_allocator_to_its_baseline() {
 }
 
 /// Bytes and slabs in the render world's mesh allocator (`None` without a renderer).
-fn allocator_bytes(app: &mut App) -> Option<(u64, usize)> {
+fn allocator_bytes(app: &App) -> Option<(u64, usize)> {
     let render = app.get_sub_app(RenderApp)?;
     let allocator = render.world().get_resource::<MeshAllocator>()?;
     Some((allocator.slabs_size(), allocator.slab_count()))
@@ -115,7 +115,7 @@ fn soak(name: &str, frames: usize, rendered: bool) {
         )
     };
     let baseline = counts(&app);
-    let allocator_baseline = allocator_bytes(&mut app);
+    let allocator_baseline = allocator_bytes(&app);
     assert_eq!(
         allocator_baseline.is_some(),
         rendered,
@@ -267,7 +267,7 @@ fn soak(name: &str, frames: usize, rendered: bool) {
         ready.extend(ready_cursor.read(messages).map(|m| (frame, m.asset)));
         let messages = world.resource::<Messages<MultiresSceneConverted>>();
         scenes_converted += scene_cursor.read(messages).count();
-        allocator_peak = allocator_peak.max(allocator_bytes(&mut app));
+        allocator_peak = allocator_peak.max(allocator_bytes(&app));
         let stats = *app.world().resource::<AslodStats>();
         if stats.allocated {
             allocated += 1;
@@ -324,7 +324,7 @@ fn soak(name: &str, frames: usize, rendered: bool) {
     // frees a mesh's allocation in the frame after its asset goes).
     for _ in 0..200 {
         app.update();
-        if counts(&app) == baseline && allocator_bytes(&mut app) == allocator_baseline {
+        if counts(&app) == baseline && allocator_bytes(&app) == allocator_baseline {
             break;
         }
         std::thread::sleep(std::time::Duration::from_millis(5));
@@ -335,7 +335,7 @@ fn soak(name: &str, frames: usize, rendered: bool) {
         "(meshes, multires assets) after everything was despawned"
     );
     if let (Some(before), Some(peak)) = (allocator_baseline, allocator_peak) {
-        let after = allocator_bytes(&mut app).expect("the render world stays");
+        let after = allocator_bytes(&app).expect("the render world stays");
         println!(
             "soak: mesh allocator {} B in {} slabs before, peak {} B, {} B in {} slabs after",
             before.0, before.1, peak.0, after.0, after.1
