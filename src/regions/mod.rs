@@ -58,11 +58,13 @@ mod bands;
 mod borders;
 mod build;
 mod cache;
+mod error_split;
 mod morph;
 mod partition;
 mod util;
 
 pub use cache::RegionCaches;
+pub use error_split::ErrorCurves;
 pub use morph::{Geomorphs, MorphGroup, MorphKind, VertexMorph};
 pub use partition::{GridPlane, Partition};
 

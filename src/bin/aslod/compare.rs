@@ -2,12 +2,13 @@
 
 use crate::extract::assemble;
 use crate::{CliResult, load, partition};
+use bevy_aslod::bounds::Obb;
 use bevy_aslod::distance::{Distance, DistanceOptions, MeshRef, mesh_distance};
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::multires::{
     BuildOptions, CollapseOperator, PolygonCache, ProgressiveMesh, indexed_mesh_bytes,
 };
-use bevy_aslod::regions::RegionMesh;
+use bevy_aslod::regions::{ErrorCurves, RegionMesh};
 use glam::{Quat, Vec3};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -29,6 +30,11 @@ pub(crate) struct CompareArgs {
     /// (`grid:NxM` or `clusters:K`), each region at the same ratio.
     #[arg(long)]
     regions: Option<String>,
+    /// With `--regions`, how the ratio's triangles are shared among the regions: `ratio`
+    /// (each region at the ratio) or `error` (at equal error, every region seen alike from
+    /// all sides: what the plugin's `RegionSplit::ScreenError` does).
+    #[arg(long, default_value = "ratio", value_parser = ["ratio", "error"], requires = "regions")]
+    split: String,
     /// Also compare on this many copies of the mesh turned by pseudo-random rotations (seeds
     /// 1 to N), and print the geometric mean of the ratios: which collapse wins a near-tie
     /// depends on the rounding, so one orientation is one draw.
@@ -346,7 +352,9 @@ fn measure(args: &CompareArgs) -> Result<Report, Box<dyn std::error::Error>> {
     let ours_bytes = pm.memory_bytes();
     let rotated = compare_rotated(&mesh, ratios, args.rotations, &build_options)?;
     let partitioned = match regions_spec {
-        Some(spec) => compare_partitioned(&mesh, spec, &rows, &build_options)?,
+        Some(spec) => {
+            compare_partitioned(&mesh, spec, args.split == "error", &rows, &build_options)?
+        }
         None => Vec::new(),
     };
     Ok(Report {
@@ -366,11 +374,13 @@ fn measure(args: &CompareArgs) -> Result<Report, Box<dyn std::error::Error>> {
     })
 }
 
-/// The cost of partitioning: `mesh` cut by `spec`, every region at each row's ratio, against
-/// the whole mesh (the row's distance).
+/// The cost of partitioning: `mesh` cut by `spec`, every region at each row's ratio (or, `by_error`,
+/// the ratio's triangles shared at equal error), against the whole mesh (the row's
+/// distance).
 fn compare_partitioned(
     mesh: &IndexedMesh,
     spec: &str,
+    by_error: bool,
     rows: &[Row],
     build_options: &BuildOptions,
 ) -> Result<Vec<Partitioned>, Box<dyn std::error::Error>> {
@@ -378,13 +388,29 @@ fn compare_partitioned(
     let original = MeshRef::new(&mesh.positions, &mesh.indices);
     let mut partitioned = Vec::new();
     let regions = RegionMesh::build(mesh, &partition(mesh, spec)?, build_options)?;
+    let obbs: Vec<Obb> = regions.regions().iter().map(|r| r.obb()).collect();
+    let curves = ErrorCurves::new(&regions, &obbs);
+    // Every region seen alike from all sides: its projected area is its box's mean one.
+    let areas: Vec<f32> = obbs
+        .iter()
+        .map(|o| {
+            let h = o.half_extents;
+            2.0 * (h.x * h.y + h.y * h.z + h.z * h.x)
+        })
+        .collect();
     for row in rows {
         let ratio = row.ratio;
-        let counts: Vec<usize> = regions
+        let mut counts: Vec<usize> = regions
             .regions()
             .iter()
             .map(|r| (ratio * r.max_triangles() as f64).round() as usize)
             .collect();
+        if by_error {
+            let mut shared = vec![0; counts.len()];
+            let total = counts.iter().sum::<usize>().try_into().unwrap_or(u32::MAX);
+            curves.split(&areas, total, &mut shared);
+            counts = shared.into_iter().map(|c| c as usize).collect();
+        }
         let (assembled, _) = assemble(&regions, &counts);
         let d = mesh_distance(
             original,
@@ -436,6 +462,7 @@ fn print_json(args: &CompareArgs, report: &Report) -> CliResult {
         },
         "partitioned": regions_spec.map(|spec| serde_json::json!({
             "regions": spec,
+            "split": args.split,
             "rows": partitioned.iter().zip(ratios).map(|((n, d, whole), ratio)| serde_json::json!({
                 "ratio": ratio,
                 "triangles": n,
@@ -547,14 +574,19 @@ fn print_table(args: &CompareArgs, report: &Report) {
     }
     println!("pinched: edges shared by more than two triangles (non-manifold), ours/meshopt");
     if let Some(spec) = regions_spec {
-        print_partitioned(spec, ratios, partitioned);
+        print_partitioned(spec, args.split == "error", ratios, partitioned);
     }
     print_rotated(args.rotations, rotated);
 }
 
 /// The `--regions` table of [`print_table`]: `partitioned` (cut by `spec`) per ratio.
-fn print_partitioned(spec: &str, ratios: &[f64], partitioned: &[Partitioned]) {
-    println!("partitioned ({spec}), every region at the ratio, against the whole mesh:");
+fn print_partitioned(spec: &str, by_error: bool, ratios: &[f64], partitioned: &[Partitioned]) {
+    let how = if by_error {
+        "the ratio's triangles shared at equal error"
+    } else {
+        "every region at the ratio"
+    };
+    println!("partitioned ({spec}), {how}, against the whole mesh:");
     println!(
         "{:>6} {:>8} {:>10} {:>10} | {:>9} {:>9}",
         "ratio", "tris", "hausdorff", "rms", "H vs one", "RMS vs one"
