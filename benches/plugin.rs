@@ -3,6 +3,8 @@
 //! with hysteresis ε = 0 and 8, and with `Geomorph(0.25)` on every model (ε = 0): written
 //! from the CPU (every moving region's vertices, each frame), and as for `GeomorphMaterial`
 //! (`GpuGeomorph`: the vertices a morph starts on, once; the GPU's work is not in the table).
+//! A last run picks `RegionSplit::Area` or `ScreenError` at random per frame and prints
+//! Allocate's median for each.
 //!
 //! `cargo bench --bench plugin`
 
@@ -15,6 +17,7 @@ mod scene;
 use bevy::prelude::*;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodViewport, Geomorph, GpuGeomorph, MultiresMesh, MultiresModel,
+    PolygonBudget, RegionSplit,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use std::time::Instant;
@@ -36,14 +39,17 @@ fn main() {
         (0, Some((0.25, false))),
         (0, Some((0.25, true))),
     ] {
-        run(hysteresis, morph);
+        run(hysteresis, morph, false);
         println!();
     }
+    run(0, None, true);
 }
 
 /// One run: build the scene, fly the camera, print the table. `morph`: geomorph seconds,
-/// and whether on the GPU path.
-fn run(hysteresis: u32, morph: Option<(f32, bool)>) {
+/// and whether on the GPU path. `splits`: each frame takes `RegionSplit::Area` or
+/// `ScreenError` at random, and Allocate's median is printed for each (what sharing by
+/// error costs, in the same run).
+fn run(hysteresis: u32, morph: Option<(f32, bool)>, splits: bool) {
     let mesh = scene::patch(33);
     let partition = Partition::grid(&mesh, GridPlane::XZ, 4, 4).expect("grid");
     let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid patch");
@@ -103,8 +109,15 @@ fn run(hysteresis: u32, morph: Option<(f32, bool)>) {
     let mut frame_wall = Vec::new();
     let mut changed = 0usize;
     let mut max_triangles = 0u64;
+    let (mut rng, mut by_split) = (0x9e37_79b9_7f4a_7c15u64, [Vec::new(), Vec::new()]);
     for frame in 0..WARMUP + FRAMES {
         let t = frame as f32 / (WARMUP + FRAMES) as f32;
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        let split = usize::from(splits && rng & 1 == 1);
+        app.world_mut().resource_mut::<PolygonBudget>().split =
+            [RegionSplit::ScreenError, RegionSplit::Area][split];
         let (eye, target) = scene::camera(t, side);
         *app.world_mut()
             .get_mut::<Transform>(camera)
@@ -118,6 +131,7 @@ fn run(hysteresis: u32, morph: Option<(f32, bool)>) {
             "over budget: {stats:?}"
         );
         if frame >= WARMUP {
+            by_split[split].push(stats.allocation_ms);
             allocate.push(stats.allocation_ms);
             select.push(stats.update_ms - stats.upload_ms);
             upload.push(stats.upload_ms);
@@ -139,13 +153,18 @@ fn run(hysteresis: u32, morph: Option<(f32, bool)>) {
         v.sort_by(f64::total_cmp);
     }
     println!(
-        "bevy_aslod plugin: {MODELS} models x {regions} regions = {} region instances, P = {BUDGET}, hysteresis {hysteresis}, geomorphs {}, {FRAMES} frames, {}",
+        "bevy_aslod plugin: {MODELS} models x {regions} regions = {} region instances, P = {BUDGET}, hysteresis {hysteresis}, geomorphs {}, {FRAMES} frames, {}{}",
         MODELS * regions,
         morph.map_or("off".to_string(), |(s, gpu)| format!(
             "{s} s ({})",
             if gpu { "GPU path" } else { "CPU writes" }
         )),
-        common::compute_threads()
+        common::compute_threads(),
+        if splits {
+            ", region split picked at random per frame"
+        } else {
+            ""
+        }
     );
     println!("| step | median ms | p90 ms | max ms |");
     println!("|---|---:|---:|---:|");
@@ -169,6 +188,16 @@ fn run(hysteresis: u32, morph: Option<(f32, bool)>) {
         changed as f64 / FRAMES as f64,
         MODELS * 2 * 32 * 32
     );
+    if splits {
+        for (name, v) in ["ScreenError", "Area"].iter().zip(&mut by_split) {
+            v.sort_by(f64::total_cmp);
+            println!(
+                "Allocate with RegionSplit::{name}: median {:.3} ms over {} frames",
+                percentile(v, 0.5),
+                v.len()
+            );
+        }
+    }
     let median = percentile(&frame_total, 0.5);
     println!(
         "target <= 2 ms per frame: {}",

@@ -56,7 +56,7 @@ pub mod prelude {
         AslodOverlay, AslodPlugin, AslodStats, AslodSystems, AslodViewport, CountInBudget,
         FullDetail, Geomorph, GeomorphMaterial, GpuGeomorph, LodPriority, LodRegion, MultiresError,
         MultiresInstance, MultiresMaterialPlugin, MultiresMesh, MultiresModel, MultiresScene,
-        MultiresSceneModels, MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera,
+        MultiresSceneModels, MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera, RegionSplit,
         RegionUpload, SharedLevels, ViewDependent,
     };
 }

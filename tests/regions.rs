@@ -2,9 +2,12 @@
 
 mod common;
 
+use bevy_aslod::bounds::Obb;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::multires::{BuildOptions, CollapseOperator};
-use bevy_aslod::regions::{GridPlane, Partition, RegionCaches, RegionMesh, triangle_owner};
+use bevy_aslod::regions::{
+    ErrorCurves, GridPlane, Partition, RegionCaches, RegionMesh, triangle_owner,
+};
 use common::*;
 use glam::Vec3;
 use proptest::prelude::*;
@@ -623,4 +626,127 @@ fn known_fold_with_a_fragmented_random_partition() {
         let assembled = assemble(&regions, &mut caches);
         assert_closed(&mesh.positions, &assembled, "fragmented partition");
     }
+}
+
+/// The region meshes and boxes of a test mesh cut into `k` clusters, with their error curves.
+fn curves_of(mesh: &IndexedMesh, k: usize) -> (RegionMesh, Vec<Obb>, ErrorCurves) {
+    let regions = build(mesh, &Partition::clusters(mesh, k).unwrap());
+    let obbs: Vec<Obb> = regions.regions().iter().map(|r| r.obb()).collect();
+    let curves = ErrorCurves::new(&regions, &obbs);
+    (regions, obbs, curves)
+}
+
+/// A box's projected area averaged over directions (a quarter of its surface).
+fn mean_area(obb: &Obb) -> f32 {
+    let h = obb.half_extents;
+    2.0 * (h.x * h.y + h.y * h.z + h.z * h.x)
+}
+
+/// `ErrorCurves::split` keeps within the total and each region's levels, uses nearly all of
+/// the total, gives regions out of view their coarsest level and every region its full
+/// detail when the total allows it.
+#[test]
+fn an_error_split_keeps_the_total_and_the_levels() {
+    let (regions, obbs, curves) = curves_of(&testdata_mesh("stanford-bunny.obj"), 8);
+    let (min, max): (Vec<u32>, Vec<u32>) = regions
+        .regions()
+        .iter()
+        .map(|r| (r.min_triangles() as u32, r.max_triangles() as u32))
+        .unzip();
+    let full: u32 = max.iter().sum();
+    let mut rng = Rng(7);
+    let mut counts = vec![0; obbs.len()];
+    for case in 0..200 {
+        // Areas as some view would see them: a random scale per region, some out of view.
+        let areas: Vec<f32> = obbs
+            .iter()
+            .map(|o| match rng.below(6) {
+                0 => 0.0,
+                _ => mean_area(o) * 1e4 * (0.05 + 4.0 * rng.unit()),
+            })
+            .collect();
+        let total = (f64::from(full) * f64::from(rng.unit())) as u32;
+        curves.split(&areas, total, &mut counts);
+        let sum: u32 = counts.iter().sum();
+        let coarsest: u32 = min.iter().sum();
+        let in_view: u32 = (0..areas.len())
+            .map(|r| if areas[r] > 0.0 { max[r] } else { min[r] })
+            .sum();
+        assert!(
+            sum <= total.max(coarsest),
+            "case {case}: {sum} over {total}"
+        );
+        // What is left unused is a few triangles per region (levels are a step apart).
+        if total >= coarsest && total <= in_view {
+            assert!(
+                sum + 64 * counts.len() as u32 >= total,
+                "case {case}: {sum} of {total} used"
+            );
+        }
+        for r in 0..counts.len() {
+            assert!(
+                (min[r]..=max[r]).contains(&counts[r]),
+                "case {case}, region {r}"
+            );
+            if areas[r] == 0.0 {
+                assert_eq!(counts[r], min[r], "case {case}: region {r} is out of view");
+            }
+        }
+    }
+    let areas: Vec<f32> = obbs.iter().map(mean_area).collect();
+    curves.split(&areas, full, &mut counts);
+    assert_eq!(counts, max, "the whole total: every region at full detail");
+    curves.split(&[f32::NAN; 8], full, &mut counts);
+    assert_eq!(
+        counts, min,
+        "no region with a usable area: every one coarsest"
+    );
+}
+
+/// At equal error on screen, a region nearer the camera (more pixels per unit) gets more
+/// triangles, and sharing by error brings the assembled mesh nearer to the source than
+/// giving each region the same ratio (the fandisk, whose flat and curved faces need very
+/// different counts: half its triangles, 16 regions).
+#[test]
+fn an_error_split_favours_near_regions_and_lowers_the_error() {
+    let mesh = testdata_mesh("fandisk.obj");
+    let (regions, obbs, curves) = curves_of(&mesh, 16);
+    let areas: Vec<f32> = obbs.iter().map(|o| mean_area(o) * 1e4).collect();
+    let total = (mesh.triangle_count() / 2) as u32;
+    let mut even = vec![0; obbs.len()];
+    curves.split(&areas, total, &mut even);
+    let mut near = areas.clone();
+    near[3] *= 16.0;
+    let mut favoured = vec![0; obbs.len()];
+    curves.split(&near, total, &mut favoured);
+    assert!(favoured[3] > even[3], "{favoured:?} against {even:?}");
+
+    let rms = |counts: &[u32]| {
+        let mut caches = RegionCaches::new(&regions);
+        for (r, &n) in counts.iter().enumerate() {
+            caches.set_triangle_count(&regions, r, n as usize);
+        }
+        let assembled = assemble(&regions, &mut caches);
+        let d = bevy_aslod::distance::mesh_distance(
+            bevy_aslod::distance::MeshRef::new(&mesh.positions, &mesh.indices),
+            bevy_aslod::distance::MeshRef::new(&mesh.positions, &assembled),
+            &bevy_aslod::distance::DistanceOptions::default(),
+        );
+        (assembled.len() / 3, d.rms)
+    };
+    let ratio: Vec<u32> = regions
+        .regions()
+        .iter()
+        .map(|r| (r.max_triangles() as u32) / 2)
+        .collect();
+    let (n_ratio, rms_ratio) = rms(&ratio);
+    let (n_error, rms_error) = rms(&even);
+    assert!(
+        n_error <= n_ratio + 8,
+        "{n_error} against {n_ratio} triangles"
+    );
+    assert!(
+        rms_error < 0.5 * rms_ratio,
+        "RMS {rms_error} by error against {rms_ratio} by ratio"
+    );
 }

@@ -2,7 +2,9 @@
 //! one α allocation of the budget over all of them at once ([`FrameAllocation`]).
 
 use super::cameras::FrameCameras;
-use super::components::{AslodStats, CountInBudget, FullDetail, LodPriority, PolygonBudget};
+use super::components::{
+    AslodStats, CountInBudget, FullDetail, LodPriority, PolygonBudget, RegionSplit,
+};
 use super::diagnostics;
 use super::instance::{AllocationSlot, MultiresInstance};
 use super::tasks::{ComputePool, par_chunks};
@@ -125,6 +127,14 @@ pub(crate) fn allocate(
                 if report.infeasible {
                     debug!("polygon budget below the sum of the coarsest levels");
                 }
+                if budget.split == RegionSplit::ScreenError {
+                    split_by_error(
+                        &items,
+                        &scratch.inputs,
+                        &mut frame.counts,
+                        budget.hysteresis,
+                    );
+                }
             }
             Err(e) => {
                 if !scratch.warned_budget {
@@ -195,6 +205,69 @@ fn fill_inputs(
         fixed
     };
     par_chunks(&mut jobs, fill).into_iter().sum()
+}
+
+/// [`RegionSplit::ScreenError`]: every region model's triangles (its runs of `counts`, in
+/// `items`' order as [`fill_inputs`] laid them out) shared again among its regions by error
+/// ([`ErrorCurves::split`](crate::regions::ErrorCurves::split)), in parallel over models. A
+/// model keeps its total, so the budget holds as the allocation left it; under hysteresis a
+/// region keeps its current count when the new one is within ε of it and the model's total
+/// allows.
+fn split_by_error(
+    items: &[ModelItem],
+    inputs: &[RegionInput],
+    counts: &mut [u32],
+    hysteresis: u32,
+) {
+    let mut jobs = Vec::with_capacity(items.len());
+    let mut rest = counts;
+    for item in items {
+        let n = input_len(item).min(rest.len());
+        let (run, tail) = std::mem::take(&mut rest).split_at_mut(n);
+        rest = tail;
+        let first = item.1.first;
+        if item.4.is_none() && n > 1 {
+            jobs.push((&*item.0, &inputs[first..first + run.len()], run));
+        }
+    }
+    par_chunks(&mut jobs, |chunk| {
+        let mut areas = Vec::new();
+        for (instance, inputs, counts) in chunk {
+            let total: u32 = counts.iter().sum();
+            let at = |bound: fn(&RegionInput) -> u32| {
+                inputs
+                    .iter()
+                    .zip(counts.iter())
+                    .all(|(i, &c)| c == bound(i))
+            };
+            // Nothing to share when every region is at its coarsest, or at its full detail.
+            if at(|i| i.min) || at(|i| i.max) {
+                continue;
+            }
+            areas.clear();
+            areas.extend(inputs.iter().map(|i| i.weight));
+            instance.curves.split(&areas, total, counts);
+            if hysteresis > 0 {
+                keep_within(inputs, counts, total, hysteresis);
+            }
+        }
+    });
+}
+
+/// Hysteresis after [`split_by_error`]: each region whose count is within `hysteresis` of
+/// its current one goes back to it, in region order, while the model's sum stays at most
+/// `total`.
+fn keep_within(inputs: &[RegionInput], counts: &mut [u32], total: u32, hysteresis: u32) {
+    let mut sum: u64 = counts.iter().map(|&c| u64::from(c)).sum();
+    for (input, count) in inputs.iter().zip(counts.iter_mut()) {
+        if *count != input.current && count.abs_diff(input.current) <= hysteresis {
+            let kept = sum - u64::from(*count) + u64::from(input.current);
+            if kept <= u64::from(total) {
+                *count = input.current;
+                sum = kept;
+            }
+        }
+    }
 }
 
 /// How many allocation inputs a model fills: one per region, one for a budgeted

@@ -8,7 +8,7 @@ use crate::mesh::IndexedMesh;
 use crate::mrm::BakedMesh;
 use crate::multires::{BuildOptions, ProgressiveMesh};
 use crate::refine::VariableMesh;
-use crate::regions::{GridPlane, Partition, Region, RegionError, RegionMesh};
+use crate::regions::{ErrorCurves, GridPlane, Partition, Region, RegionError, RegionMesh};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool};
 use glam::{Mat4, Vec3};
@@ -55,6 +55,8 @@ pub struct MultiresMesh {
     obbs: Arc<[Obb]>,
     /// The axis-aligned box around every region box.
     bounds: Obb,
+    /// Every region's triangles against its error, for [`RegionSplit::ScreenError`](super::RegionSplit).
+    curves: Arc<ErrorCurves>,
     skin: Option<Arc<SkinBinding>>,
     /// The whole mesh as one variable-resolution mesh, for [`ViewDependent`](super::ViewDependent).
     variable: Option<Arc<VariableMesh>>,
@@ -77,10 +79,12 @@ impl MultiresMesh {
     ) -> Self {
         let corners: Vec<Vec3> = obbs.iter().flat_map(Obb::corners).collect();
         let bounds = fit_aabb(&corners).unwrap_or(Obb::from_aabb(Vec3::ZERO, Vec3::ZERO));
+        let curves = Arc::new(ErrorCurves::new(&regions, &obbs));
         Self {
             regions: Arc::new(regions),
             obbs,
             bounds,
+            curves,
             skin: skin.map(Arc::new),
             variable: variable.map(Arc::new),
         }
@@ -258,6 +262,15 @@ impl MultiresMesh {
     #[must_use]
     pub fn bounds(&self) -> Obb {
         self.bounds
+    }
+
+    /// Every region's triangle count against its geometric error, with which
+    /// [`RegionSplit::ScreenError`](super::RegionSplit::ScreenError) shares a model's
+    /// triangles among its regions.
+    #[inline]
+    #[must_use]
+    pub fn error_curves(&self) -> &Arc<ErrorCurves> {
+        &self.curves
     }
 
     /// Number of regions.

@@ -27,6 +27,29 @@ pub struct PolygonBudget {
     /// A frame time to aim at: with it, the plugin sets `total` every frame (see
     /// [`FrameTarget`]). Default: `None` (`total` is the user's).
     pub frame_target: Option<FrameTarget>,
+    /// How a model's triangles are shared among its regions.
+    ///
+    /// Default: [`RegionSplit::ScreenError`].
+    pub split: RegionSplit,
+}
+
+/// How a model's part of the budget is shared among its regions ([`PolygonBudget::split`]).
+///
+/// Either way the split over all regions of all models comes first (ASLOD's, by projected
+/// area); the models' totals and the budget stay as it made them.
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RegionSplit {
+    /// As the allocation gave it: each region by its own projected area, `pᵢ ∝ (c·Aᵢ)^(1/α)`
+    /// (ASLOD section 5), whatever its shape. A flat region gets as many triangles as a
+    /// detailed one of the same size on screen.
+    Area,
+    /// Shared again so that every region of the model shows about the same geometric error
+    /// in pixels (its error at its level, times the pixels a unit of the model covers at that
+    /// region): triangles go where they remove the most error, as when simplifying the whole
+    /// mesh at once, and regions nearer the camera still get more
+    /// ([`ErrorCurves::split`](crate::regions::ErrorCurves::split)).
+    #[default]
+    ScreenError,
 }
 
 /// A budget in milliseconds: each frame, before the split, the plugin moves
@@ -53,6 +76,7 @@ impl Default for PolygonBudget {
             alpha: DEFAULT_ALPHA,
             hysteresis: 0,
             frame_target: None,
+            split: RegionSplit::default(),
         }
     }
 }

@@ -12,7 +12,7 @@
 //! | [`Rebuild`] | models whose asset changed | `Spawn` | `Spawn` |
 
 use crate::bounds::Obb;
-use crate::regions::{RegionCaches, RegionMesh};
+use crate::regions::{ErrorCurves, RegionCaches, RegionMesh};
 use bevy::asset::AssetId;
 use bevy::mesh::Indices;
 use bevy::prelude::*;
@@ -28,6 +28,8 @@ pub struct MultiresInstance {
     pub(super) asset: AssetId<super::asset::MultiresMesh>,
     pub(super) regions: Arc<RegionMesh>,
     pub(super) obbs: Arc<[Obb]>,
+    /// Every region's triangles against its error (the asset's).
+    pub(super) curves: Arc<ErrorCurves>,
     /// A box around every region's box, in the model's space: a model whose box is out of
     /// every view skips its regions' projections (unskinned models only).
     pub(super) bounds: Obb,

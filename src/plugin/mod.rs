@@ -21,7 +21,7 @@
 //! | [`NoLodAllocation`] | a camera (optional) | the camera takes no part in the budget split |
 //! | [`LodCameraWeight`] | a camera (optional) | the weight of its view in the split; default `1` |
 //! | `RenderLayers` | model root, camera (optional) | a camera weighs only the models it draws; the model's layers go to its regions |
-//! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε; or a frame time to aim at ([`FrameTarget`]) |
+//! | [`PolygonBudget`] | resource | `P`, α, hysteresis ε, how a model's regions share its triangles ([`RegionSplit`]); or a frame time to aim at ([`FrameTarget`]) |
 //! | [`AslodViewport`] | resource (optional) | viewport size for cameras without a known one |
 //! | [`AslodOverlay`] | resource | draws every region's world box with gizmos, its triangles and a status line ([`status_line`]) |
 //! | [`AslodStats`] | resource | what the last frame did (also as diagnostics) |
@@ -86,7 +86,8 @@ pub use cameras::{LodCameraWeight, NoLodAllocation, RefineCamera};
 pub use components::ViewDependentLevel as VariableLevel;
 pub use components::{
     AslodOverlay, AslodStats, AslodViewport, CountInBudget, FrameSource, FrameTarget, FullDetail,
-    Geomorph, LodPriority, LodRegion, MultiresModel, PolygonBudget, ViewDependentLevel,
+    Geomorph, LodPriority, LodRegion, MultiresModel, PolygonBudget, RegionSplit,
+    ViewDependentLevel,
 };
 pub use error::MultiresError;
 pub use geomorph::{

@@ -135,6 +135,7 @@ pub(super) fn spawn_regions(
             caches: RegionCaches::new(&regions),
             bounds: asset.bounds(),
             obbs: asset.obbs().clone(),
+            curves: asset.error_curves().clone(),
             targets,
             mesh_ids: handles.iter().map(Handle::id).collect(),
             meshes: handles,
