@@ -28,7 +28,7 @@ use bevy_aslod::bevy_mesh::from_bevy_mesh;
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{
     AslodPlugin, FullDetail, MultiresInstance, MultiresScene, MultiresSceneConverted,
-    MultiresSceneModels, MultiresSourceMesh, PolygonBudget,
+    MultiresSceneModels, MultiresSourceMesh, PolygonBudget, RegionSplit,
 };
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -82,6 +82,10 @@ struct Args {
     /// Our build's `BuildOptions::color_weight` (default: the crate's).
     #[arg(long)]
     color_weight: Option<f64>,
+    /// How a model's triangles are shared among its regions: `error`
+    /// (`RegionSplit::ScreenError`, the plugin's default) or `area` (`RegionSplit::Area`).
+    #[arg(long, default_value = "error", value_parser = ["error", "area"])]
+    split: String,
 }
 
 fn main() {
@@ -167,7 +171,13 @@ fn run(args: &Args) -> Result<(), String> {
         for &ratio in &args.ratios {
             stage.set_full_detail(false);
             let budget = ((full as f64 * ratio).round() as u32).max(1);
-            stage.app.world_mut().resource_mut::<PolygonBudget>().total = budget;
+            let mut polygons = stage.app.world_mut().resource_mut::<PolygonBudget>();
+            polygons.total = budget;
+            polygons.split = if args.split == "area" {
+                RegionSplit::Area
+            } else {
+                RegionSplit::ScreenError
+            };
             let ours = stage.capture_stable()?;
             let counts = stage.source_triangles();
             if k == 0 {

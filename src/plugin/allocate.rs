@@ -129,7 +129,7 @@ pub(crate) fn allocate(
                 }
                 if budget.split == RegionSplit::ScreenError {
                     split_by_error(
-                        &items,
+                        &mut items,
                         &scratch.inputs,
                         &mut frame.counts,
                         budget.hysteresis,
@@ -180,10 +180,8 @@ fn fill_inputs(
         let mut scratch = AreaScratch::default();
         let mut fixed = 0u64;
         for ((instance, slot, transform, priority, view_dependent, layers), first, out) in chunk {
-            **slot = AllocationSlot {
-                allocation: serial,
-                first: *first,
-            };
+            slot.allocation = serial;
+            slot.first = *first;
             let c = priority_of(*priority);
             match view_dependent {
                 Some(state) if state.is_budgeted() => {
@@ -214,25 +212,26 @@ fn fill_inputs(
 /// region keeps its current count when the new one is within ε of it and the model's total
 /// allows.
 fn split_by_error(
-    items: &[ModelItem],
+    items: &mut [ModelItem],
     inputs: &[RegionInput],
     counts: &mut [u32],
     hysteresis: u32,
 ) {
     let mut jobs = Vec::with_capacity(items.len());
     let mut rest = counts;
-    for item in items {
+    for item in items.iter_mut() {
         let n = input_len(item).min(rest.len());
         let (run, tail) = std::mem::take(&mut rest).split_at_mut(n);
         rest = tail;
-        let first = item.1.first;
+        let (instance, slot) = (item.0, &mut *item.1);
         if item.4.is_none() && n > 1 {
-            jobs.push((&*item.0, &inputs[first..first + run.len()], run));
+            let first = slot.first;
+            jobs.push((instance, slot, &inputs[first..first + run.len()], run));
         }
     }
     par_chunks(&mut jobs, |chunk| {
-        let mut areas = Vec::new();
-        for (instance, inputs, counts) in chunk {
+        let (mut areas, mut scratch) = (Vec::new(), Vec::new());
+        for (instance, slot, inputs, counts) in chunk {
             let total: u32 = counts.iter().sum();
             let at = |bound: fn(&RegionInput) -> u32| {
                 inputs
@@ -246,7 +245,10 @@ fn split_by_error(
             }
             areas.clear();
             areas.extend(inputs.iter().map(|i| i.weight));
-            instance.curves.split(&areas, total, counts);
+            slot.tolerance =
+                instance
+                    .curves
+                    .split_from(&areas, total, slot.tolerance, &mut scratch, counts);
             if hysteresis > 0 {
                 keep_within(inputs, counts, total, hysteresis);
             }

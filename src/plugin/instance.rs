@@ -169,12 +169,25 @@ impl MultiresInstance {
 }
 
 /// Where a model's inputs sat in the last allocation that included it.
-#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub(super) struct AllocationSlot {
     /// That allocation's serial number ([`FrameAllocation::serial`](super::allocate::FrameAllocation)).
     pub(super) allocation: u64,
     /// The model's first input in that allocation's inputs and counts.
     pub(super) first: usize,
+    /// The tolerance its last split by error found (`NaN`: none yet), where the next one
+    /// starts ([`ErrorCurves::split_from`]).
+    pub(super) tolerance: f32,
+}
+
+impl Default for AllocationSlot {
+    fn default() -> Self {
+        Self {
+            allocation: 0,
+            first: 0,
+            tolerance: f32::NAN,
+        }
+    }
 }
 
 /// An unskinned model's index buffers between `SelectLod` and `Upload` (skinned models

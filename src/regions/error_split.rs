@@ -160,90 +160,141 @@ impl ErrorCurves {
     /// view), or one that is not finite, gets its coarsest level. Regions past the end of
     /// `areas` or `out` are left out.
     pub fn split(&self, areas: &[f32], total: u32, out: &mut [u32]) {
+        self.split_from(areas, total, f32::NAN, &mut Vec::new(), out);
+    }
+
+    /// [`split`](Self::split), starting the search from `hint`, the tolerance an earlier
+    /// split returned (`NaN`: none), with `scratch` for its per-region data. Returns the
+    /// tolerance found (`log2` of pixels, in the units of `areas`; not finite when no
+    /// region is in view). From one frame to the next the tolerance moves little, so a
+    /// split from the last one takes a few evaluations instead of a dozen.
+    pub fn split_from(
+        &self,
+        areas: &[f32],
+        total: u32,
+        hint: f32,
+        scratch: &mut Vec<f32>,
+        out: &mut [u32],
+    ) -> f32 {
         let n = self.region_count().min(areas.len()).min(out.len());
         let last = self.samples - 1;
-        let curve = |r: usize| &self.counts[r * self.samples..(r + 1) * self.samples];
-        // log2 of each region's pixels per unit of the mesh (None: out of view).
-        let scales: Vec<Option<f32>> = (0..n)
-            .map(|r| {
-                let a = areas[r];
-                (a > 0.0 && a.is_finite()).then(|| 0.5 * (a.log2() - self.log2_mean_area[r]))
-            })
-            .collect();
-        // The triangles of every region at a tolerance of 2^t pixels.
+        let inverse = 1.0 / self.step;
+        // Per region, the sample position at t = 0: a region's sample at tolerance 2^t is
+        // `t / step - offset` (NaN: out of view).
+        scratch.clear();
+        scratch.extend((0..n).map(|r| {
+            let a = areas[r];
+            if a > 0.0 && a.is_finite() {
+                (0.5 * (a.log2() - self.log2_mean_area[r]) + self.log2_first) * inverse
+            } else {
+                f32::NAN
+            }
+        }));
+        let offsets = &scratch[..];
+        let (mut lo, mut hi) = offsets
+            .iter()
+            .filter(|o| !o.is_nan())
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &o| {
+                (lo.min(o), hi.max(o))
+            });
+        // Below `lo` every region in view is at full detail, above `hi` at its coarsest.
+        (lo, hi) = (lo * self.step, (hi + last as f32) * self.step);
         let at = |t: f32, r: usize| -> f32 {
-            let c = curve(r);
-            match scales[r] {
-                None => c[last],
-                Some(s) => {
-                    let x = (t - s - self.log2_first) / self.step;
-                    if x <= 0.0 {
-                        c[0]
-                    } else if x >= last as f32 {
-                        c[last]
-                    } else {
-                        let k = x as usize;
-                        let f = x - k as f32;
-                        c[k] + (c[k + 1] - c[k]) * f
-                    }
-                }
+            let c = &self.counts[r * self.samples..(r + 1) * self.samples];
+            let x = t * inverse - offsets[r];
+            if x.is_nan() || x >= last as f32 {
+                c[last]
+            } else if x <= 0.0 {
+                c[0]
+            } else {
+                let k = x as usize;
+                c[k] + (c[k + 1] - c[k]) * (x - k as f32)
             }
         };
-        let sum = |t: f32| (0..n).map(|r| at(t, r).floor()).sum::<f32>();
-        let (mut lo, mut hi) = scales
-            .iter()
-            .flatten()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &s| {
-                (lo.min(s), hi.max(s))
-            });
         let total = total as f32;
-        // Below `lo` every region in view is at full detail, above `hi` at its coarsest.
-        lo += self.log2_first;
-        hi += self.log2_first + last as f32 * self.step;
-        let t = if !(lo <= hi) || sum(lo) <= total {
+        let over = |t: f32| (0..n).map(|r| at(t, r).floor()).sum::<f32>() - total;
+        let t = if !(lo <= hi) {
+            f32::INFINITY
+        } else if over(lo) <= 0.0 {
             lo
         } else {
-            // Regula falsi, Illinois variant (the sum is monotone and piecewise linear in
-            // t): `hi` always keeps the sum within the total. Close enough once at most a
-            // thousandth of the total is left over.
-            let slack = 1.0 + total / 1024.0;
-            let (mut over_lo, mut over_hi) = (sum(lo) - total, sum(hi) - total);
-            let mut last_side = 0i8;
-            for _ in 0..STEPS {
-                if -over_hi <= slack {
-                    break;
-                }
-                let secant = lo + over_lo * (hi - lo) / (over_lo - over_hi);
-                let t = if secant > lo && secant < hi {
-                    secant
-                } else {
-                    0.5 * (lo + hi)
-                };
-                let over = sum(t) - total;
-                if over <= 0.0 {
-                    (hi, over_hi) = (t, over);
-                    if last_side == -1 {
-                        over_lo *= 0.5;
-                    }
-                    last_side = -1;
-                } else {
-                    (lo, over_lo) = (t, over);
-                    if last_side == 1 {
-                        over_hi *= 0.5;
-                    }
-                    last_side = 1;
-                }
-            }
-            hi
+            tolerance(lo, hi, hint, 1.0 + total / 1024.0, over)
         };
         for (r, count) in out.iter_mut().enumerate().take(n) {
-            *count = if t.is_finite() {
-                at(t, r).floor() as u32
-            } else {
-                curve(r)[last] as u32
-            };
+            *count = at(t, r) as u32;
+        }
+        t
+    }
+}
+
+/// The smallest `t` in `lo..=hi` (about: within `slack` triangles) at which `over(t)`, the
+/// triangles over the total, falling with `t`, is at most zero; `over(lo) > 0`. From `hint`
+/// when it lies inside, by steps that double until they bracket it, then by regula falsi
+/// (Illinois): the sum is piecewise linear in `t`.
+fn tolerance(mut lo: f32, mut hi: f32, hint: f32, slack: f32, over: impl Fn(f32) -> f32) -> f32 {
+    let (mut over_lo, mut over_hi) = (f32::NAN, f32::NAN);
+    if hint > lo && hint < hi {
+        let at_hint = over(hint);
+        let mut step = 0.125;
+        if at_hint <= 0.0 {
+            (hi, over_hi) = (hint, at_hint);
+            while hi - step > lo {
+                let t = hi - step;
+                let o = over(t);
+                if o > 0.0 {
+                    (lo, over_lo) = (t, o);
+                    break;
+                }
+                (hi, over_hi) = (t, o);
+                step *= 2.0;
+            }
+        } else {
+            (lo, over_lo) = (hint, at_hint);
+            while lo + step < hi {
+                let t = lo + step;
+                let o = over(t);
+                if o <= 0.0 {
+                    (hi, over_hi) = (t, o);
+                    break;
+                }
+                (lo, over_lo) = (t, o);
+                step *= 2.0;
+            }
         }
     }
+    if over_lo.is_nan() {
+        over_lo = over(lo);
+    }
+    if over_hi.is_nan() {
+        over_hi = over(hi);
+    }
+    let mut last_side = 0i8;
+    for _ in 0..STEPS {
+        if -over_hi <= slack {
+            break;
+        }
+        let secant = lo + over_lo * (hi - lo) / (over_lo - over_hi);
+        let t = if secant > lo && secant < hi {
+            secant
+        } else {
+            0.5 * (lo + hi)
+        };
+        let o = over(t);
+        if o <= 0.0 {
+            (hi, over_hi) = (t, o);
+            if last_side == -1 {
+                over_lo *= 0.5;
+            }
+            last_side = -1;
+        } else {
+            (lo, over_lo) = (t, o);
+            if last_side == 1 {
+                over_hi *= 0.5;
+            }
+            last_side = 1;
+        }
+    }
+    hi
 }
 
 /// The diagonal of the box around the vertices the full-detail triangles use: the length
