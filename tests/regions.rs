@@ -707,6 +707,7 @@ fn an_error_split_keeps_the_total_and_the_levels() {
 /// triangles, and sharing by error brings the assembled mesh nearer to the source than
 /// giving each region the same ratio (the fandisk, whose flat and curved faces need very
 /// different counts: half its triangles, 16 regions).
+#[cfg(feature = "distance")]
 #[test]
 fn an_error_split_favours_near_regions_and_lowers_the_error() {
     let mesh = testdata_mesh("fandisk.obj");

@@ -103,7 +103,7 @@ impl ErrorCurves {
                 }
             }
         }
-        if !(lo <= hi) {
+        if lo > hi {
             // No level with an error: every region has one level (or all errors are zero).
             (lo, hi) = (1.0, 1.0);
         }
@@ -213,7 +213,7 @@ impl ErrorCurves {
         };
         let total = total as f32;
         let over = |t: f32| (0..n).map(|r| at(t, r).floor()).sum::<f32>() - total;
-        let t = if !(lo <= hi) {
+        let t = if lo > hi {
             f32::INFINITY
         } else if over(lo) <= 0.0 {
             lo
