@@ -4,8 +4,8 @@ use bevy::diagnostic::DiagnosticsStore;
 use bevy::prelude::*;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodViewport, CountInBudget, LodPriority, LodRegion,
-    MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec, PolygonBudget, RegionUpload,
-    diagnostics,
+    MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec, PolygonBudget, RegionSplit,
+    RegionUpload, diagnostics,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use glam::Vec3;
@@ -395,6 +395,70 @@ fn moving_the_camera_closer_gives_more_triangles() {
         "closer camera: {close_view} triangles, farther: {far_view}"
     );
     assert!(triangles(&mut app, near) > triangles(&mut app, other));
+}
+
+/// Per region, the triangles a model of a 33×33 grid shows, flat on its left half and bumpy
+/// on its right (two regions), seen from straight above under `split`.
+fn halves(split: RegionSplit) -> (Vec<u32>, u64) {
+    let mut positions = Vec::new();
+    for z in 0..33 {
+        for x in 0..33 {
+            let y = if x > 16 {
+                0.6 * ((x as f32 * 1.3).sin() * (z as f32 * 0.9).cos())
+            } else {
+                0.0
+            };
+            positions.push(Vec3::new(x as f32 - 16.0, y, z as f32 - 16.0));
+        }
+    }
+    let mut indices = Vec::new();
+    for z in 0..32u32 {
+        for x in 0..32u32 {
+            let i = z * 33 + x;
+            indices.extend_from_slice(&[i, i + 33, i + 1, i + 1, i + 33, i + 34]);
+        }
+    }
+    let mesh = bevy_aslod::mesh::IndexedMesh::new(positions, indices);
+    let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 1).expect("grid");
+    let asset = MultiresMesh::from_indexed(&mesh, &partition).expect("valid grid");
+    let mut app = app(600);
+    app.world_mut().resource_mut::<PolygonBudget>().split = split;
+    let handle = app
+        .world_mut()
+        .resource_mut::<Assets<MultiresMesh>>()
+        .add(asset);
+    let model = spawn_model(&mut app, &handle, Vec3::ZERO);
+    let camera = spawn_camera(&mut app, Vec3::ZERO);
+    *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+        Transform::from_xyz(0.0, 40.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z);
+    app.update();
+    app.update();
+    let counts = app
+        .world()
+        .get::<MultiresInstance>(model)
+        .expect("an instance")
+        .targets()
+        .to_vec();
+    (counts, stats(&app).triangles)
+}
+
+/// `RegionSplit::ScreenError` (the default) gives a model's triangles to the region whose
+/// shape needs them; `Area` splits them by size on screen alone. Both within the budget.
+#[test]
+fn a_model_shares_its_triangles_by_error_unless_told_by_area() {
+    let (by_error, total_error) = halves(RegionSplit::default());
+    let (by_area, total_area) = halves(RegionSplit::Area);
+    assert!(
+        total_error <= 600 && total_area <= 600,
+        "{total_error}, {total_area}"
+    );
+    let (flat, bumpy) = (by_error[0], by_error[1]);
+    assert!(bumpy > 4 * flat, "by error: flat {flat}, bumpy {bumpy}");
+    let (flat, bumpy) = (by_area[0], by_area[1]);
+    assert!(
+        flat.abs_diff(bumpy) * 5 < flat + bumpy,
+        "by area, as large on screen: flat {flat}, bumpy {bumpy}"
+    );
 }
 
 #[test]
