@@ -18,7 +18,7 @@ use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::tasks::{AsyncComputeTaskPool, Task, TaskPool, futures::check_ready};
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, FullDetail, Geomorph, LodRegion, MultiresError,
-    MultiresInstance, MultiresMesh, MultiresModel,
+    MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, RegionSplit,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use clap::Parser;
@@ -41,16 +41,28 @@ fn main() {
         "bevy_aslod: Silvretta (ASLOD Figure 8)",
         None,
     );
-    app.add_plugins(AslodPlugin::default().with_budget(BUDGET))
-        .insert_resource(MorphTime(args.geomorph))
-        .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)))
-        .insert_resource(GlobalAmbientLight {
-            brightness: 400.0,
-            ..default()
-        })
-        .init_resource::<Shading>()
-        .add_systems(Startup, setup)
-        .add_systems(Update, (finish_terrain, apply_shading, update_label));
+    let budget = PolygonBudget {
+        total: BUDGET,
+        split: if args.split == "error" {
+            RegionSplit::ScreenError
+        } else {
+            RegionSplit::Area
+        },
+        ..default()
+    };
+    app.add_plugins(AslodPlugin {
+        budget,
+        ..default()
+    })
+    .insert_resource(MorphTime(args.geomorph))
+    .insert_resource(ClearColor(Color::srgb(0.62, 0.75, 0.9)))
+    .insert_resource(GlobalAmbientLight {
+        brightness: 400.0,
+        ..default()
+    })
+    .init_resource::<Shading>()
+    .add_systems(Startup, setup)
+    .add_systems(Update, (finish_terrain, apply_shading, update_label));
     if args.headless {
         let dir = args
             .screenshot
@@ -83,6 +95,11 @@ struct Args {
     /// Geomorphs: spread each level change over this many seconds (0: at once).
     #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
     geomorph: f32,
+    /// How the terrain's triangles are shared among its regions: `area`, as in the paper's
+    /// figure (`RegionSplit::Area`: the top view spreads them evenly), or `error` (the
+    /// plugin's default, `RegionSplit::ScreenError`: rough regions get more).
+    #[arg(long, default_value = "area", value_parser = ["area", "error"])]
+    split: String,
 }
 
 /// The terrain's [`Geomorph`] time (`--geomorph`).

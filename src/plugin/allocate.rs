@@ -208,7 +208,8 @@ fn fill_inputs(
 /// [`RegionSplit::ScreenError`]: every region model's triangles (its runs of `counts`, in
 /// `items`' order as [`fill_inputs`] laid them out) shared again among its regions by error
 /// ([`ErrorCurves::split`](crate::regions::ErrorCurves::split)), in parallel over models. A
-/// model keeps its total, so the budget holds as the allocation left it; under hysteresis a
+/// model shows at most its total (what the split leaves unused, at most a thousandth of it
+/// and a triangle, is not handed to other models), so the budget holds; under hysteresis a
 /// region keeps its current count when the new one is within ε of it and the model's total
 /// allows.
 fn split_by_error(
@@ -256,13 +257,15 @@ fn split_by_error(
     });
 }
 
-/// Hysteresis after [`split_by_error`]: each region whose count is within `hysteresis` of
-/// its current one goes back to it, in region order, while the model's sum stays at most
-/// `total`.
+/// Hysteresis after [`split_by_error`]: each region in view whose count is within
+/// `hysteresis` of its current one (a count within its levels) goes back to it, in region
+/// order, while the model's sum stays at most `total`; as in the allocator, a region out of
+/// view does not keep its count.
 fn keep_within(inputs: &[RegionInput], counts: &mut [u32], total: u32, hysteresis: u32) {
     let mut sum: u64 = counts.iter().map(|&c| u64::from(c)).sum();
     for (input, count) in inputs.iter().zip(counts.iter_mut()) {
-        if *count != input.current && count.abs_diff(input.current) <= hysteresis {
+        let keeps = input.weight > 0.0 && (input.min..=input.max).contains(&input.current);
+        if keeps && *count != input.current && count.abs_diff(input.current) <= hysteresis {
             let kept = sum - u64::from(*count) + u64::from(input.current);
             if kept <= u64::from(total) {
                 *count = input.current;

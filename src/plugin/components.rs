@@ -15,7 +15,9 @@ pub struct PolygonBudget {
     /// Default: `100_000` ([`DEFAULT_BUDGET`], as the core allocator's).
     pub total: u32,
     /// α: `pᵢ ∝ wᵢ^(1/α)`; `1` proportional to screen area, larger flattens towards an equal
-    /// split. Must be positive.
+    /// split (per region under [`RegionSplit::Area`]; under the default
+    /// [`RegionSplit::ScreenError`] it sets each model's total, which its regions then share
+    /// by error). Must be positive.
     ///
     /// Default: `3` ([`DEFAULT_ALPHA`], the paper's).
     pub alpha: f32,
@@ -36,7 +38,10 @@ pub struct PolygonBudget {
 /// How a model's part of the budget is shared among its regions ([`PolygonBudget::split`]).
 ///
 /// Either way the split over all regions of all models comes first (ASLOD's, by projected
-/// area); the models' totals and the budget stay as it made them.
+/// area); a model then shows at most the total it made for the model, so the budget holds.
+/// Under `ScreenError`, α weighs models against each other, and a region's pixels per unit
+/// come from its projected area clipped to the view: a region partly off screen, seen edge
+/// on, or around the camera counts as smaller than it is.
 #[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum RegionSplit {
     /// As the allocation gave it: each region by its own projected area, `pᵢ ∝ (c·Aᵢ)^(1/α)`

@@ -60,16 +60,16 @@ const STEPS: usize = 24;
 /// assert!(counts[1] > counts[0]);
 /// # Ok::<(), bevy_aslod::regions::RegionError>(())
 /// ```
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct ErrorCurves {
-    /// `log2` of the error of sample 0 (below every level's error: every region is at full
-    /// detail there).
+    /// `log2` of the error of sample 0 (below every nonzero error of every level: each
+    /// region is there at its finest level, after the collapses that cost nothing).
     log2_first: f32,
     /// Octaves between samples.
     step: f32,
     samples: usize,
     /// `counts[r * samples + k]`: triangles of region `r` at the coarsest level whose error
-    /// is at most the error of sample `k`; non-increasing in `k`, its full detail at `k = 0`
+    /// is at most the error of sample `k`; non-increasing in `k`, its finest level at `k = 0`
     /// and its coarsest level at the last sample.
     counts: Vec<f32>,
     /// Per region, `log2` of its box's mean projected area (over all directions, in the
@@ -107,9 +107,13 @@ impl ErrorCurves {
             // No level with an error: every region has one level (or all errors are zero).
             (lo, hi) = (1.0, 1.0);
         }
-        let octaves = (hi / lo).log2().max(0.0);
-        let samples = ((octaves * PER_OCTAVE).ceil() as usize + 2).min(MAX_SAMPLES);
-        let step = (octaves / (samples - 2).max(1) as f32).max(f32::EPSILON);
+        let octaves = (hi.log2() - lo.log2()).max(0.0);
+        let samples = ((octaves * PER_OCTAVE).ceil() as usize)
+            .saturating_add(2)
+            .min(MAX_SAMPLES);
+        // Equal errors everywhere still get a step of a sample's worth, so that the
+        // positions along a table keep their fractions.
+        let step = (octaves / (samples - 2).max(1) as f32).max(1.0 / PER_OCTAVE);
         // Sample 0 lies one step below the smallest error, the last at (or above) the largest.
         let log2_first = lo.log2() - step;
         let mut counts = Vec::with_capacity(per_region.len() * samples);
@@ -129,7 +133,7 @@ impl ErrorCurves {
         }
         let log2_mean_area = (0..per_region.len())
             .map(|r| {
-                let area = obbs.get(r).map_or(6.0, mean_projected_area);
+                let area = obbs.get(r).map_or(1.5, mean_projected_area);
                 area.max(f32::MIN_POSITIVE).log2()
             })
             .collect();
@@ -211,8 +215,12 @@ impl ErrorCurves {
                 c[k] + (c[k + 1] - c[k]) * (x - k as f32)
             }
         };
+        // Summed as integers: a total over 2^24 triangles is exact too.
+        let over = |t: f32| {
+            let sum: u64 = (0..n).map(|r| at(t, r) as u64).sum();
+            (sum as i64 - i64::from(total)) as f32
+        };
         let total = total as f32;
-        let over = |t: f32| (0..n).map(|r| at(t, r).floor()).sum::<f32>() - total;
         let t = if lo > hi {
             f32::INFINITY
         } else if over(lo) <= 0.0 {
@@ -297,8 +305,9 @@ fn tolerance(mut lo: f32, mut hi: f32, hint: f32, slack: f32, over: impl Fn(f32)
     hi
 }
 
-/// The diagonal of the box around the vertices the full-detail triangles use: the length
-/// the region's error table is relative to.
+/// The diagonal of the box around the vertices the full-detail triangles use: about the
+/// length the region's error table is relative to (the builder's box also holds the ring of
+/// neighbouring triangles around the region, about an edge wider on each side).
 fn diagonal_of_triangles(pm: &crate::multires::ProgressiveMesh) -> f32 {
     let positions = &pm.vertices().positions;
     let (mut lo, mut hi) = (
