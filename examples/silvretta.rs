@@ -43,11 +43,7 @@ fn main() {
     );
     let budget = PolygonBudget {
         total: BUDGET,
-        split: if args.split == "error" {
-            RegionSplit::ScreenError
-        } else {
-            RegionSplit::Area
-        },
+        split: args.split,
         ..default()
     };
     app.add_plugins(AslodPlugin {
@@ -98,8 +94,8 @@ struct Args {
     /// How the terrain's triangles are shared among its regions: `area`, as in the paper's
     /// figure (`RegionSplit::Area`: the top view spreads them evenly), or `error` (the
     /// plugin's default, `RegionSplit::ScreenError`: rough regions get more).
-    #[arg(long, default_value = "area", value_parser = ["area", "error"])]
-    split: String,
+    #[arg(long, default_value = "area", value_parser = common::parse_split)]
+    split: RegionSplit,
 }
 
 /// The terrain's [`Geomorph`] time (`--geomorph`).

@@ -84,8 +84,8 @@ struct Args {
     color_weight: Option<f64>,
     /// How a model's triangles are shared among its regions: `error`
     /// (`RegionSplit::ScreenError`, the plugin's default) or `area` (`RegionSplit::Area`).
-    #[arg(long, default_value = "error", value_parser = ["error", "area"])]
-    split: String,
+    #[arg(long, default_value = "error", value_parser = common::parse_split)]
+    split: RegionSplit,
 }
 
 fn main() {
@@ -173,11 +173,7 @@ fn run(args: &Args) -> Result<(), String> {
             let budget = ((full as f64 * ratio).round() as u32).max(1);
             let mut polygons = stage.app.world_mut().resource_mut::<PolygonBudget>();
             polygons.total = budget;
-            polygons.split = if args.split == "area" {
-                RegionSplit::Area
-            } else {
-                RegionSplit::ScreenError
-            };
+            polygons.split = args.split;
             let ours = stage.capture_stable()?;
             let counts = stage.source_triangles();
             if k == 0 {

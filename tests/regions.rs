@@ -636,12 +636,6 @@ fn curves_of(mesh: &IndexedMesh, k: usize) -> (RegionMesh, Vec<Obb>, ErrorCurves
     (regions, obbs, curves)
 }
 
-/// A box's projected area averaged over directions (a quarter of its surface).
-fn mean_area(obb: &Obb) -> f32 {
-    let h = obb.half_extents;
-    2.0 * (h.x * h.y + h.y * h.z + h.z * h.x)
-}
-
 /// `ErrorCurves::split` keeps within the total and each region's levels, uses nearly all of
 /// the total, gives regions out of view their coarsest level and every region its full
 /// detail when the total allows it.
@@ -662,7 +656,7 @@ fn an_error_split_keeps_the_total_and_the_levels() {
             .iter()
             .map(|o| match rng.below(6) {
                 0 => 0.0,
-                _ => mean_area(o) * 1e4 * (0.05 + 4.0 * rng.unit()),
+                _ => o.mean_projected_area() * 1e4 * (0.05 + 4.0 * rng.unit()),
             })
             .collect();
         let total = (f64::from(full) * f64::from(rng.unit())) as u32;
@@ -693,7 +687,7 @@ fn an_error_split_keeps_the_total_and_the_levels() {
             }
         }
     }
-    let areas: Vec<f32> = obbs.iter().map(mean_area).collect();
+    let areas: Vec<f32> = obbs.iter().map(Obb::mean_projected_area).collect();
     curves.split(&areas, full, &mut counts);
     assert_eq!(counts, max, "the whole total: every region at full detail");
     curves.split(&[f32::NAN; 8], full, &mut counts);
@@ -712,7 +706,7 @@ fn an_error_split_keeps_the_total_and_the_levels() {
 fn an_error_split_favours_near_regions_and_lowers_the_error() {
     let mesh = testdata_mesh("fandisk.obj");
     let (regions, obbs, curves) = curves_of(&mesh, 16);
-    let areas: Vec<f32> = obbs.iter().map(|o| mean_area(o) * 1e4).collect();
+    let areas: Vec<f32> = obbs.iter().map(|o| o.mean_projected_area() * 1e4).collect();
     let total = (mesh.triangle_count() / 2) as u32;
     let mut even = vec![0; obbs.len()];
     curves.split(&areas, total, &mut even);

@@ -95,6 +95,17 @@ pub fn parse_size(size: &str) -> Result<(u32, u32), String> {
         .ok_or(format!("not WIDTHxHEIGHT (16..=8192): {size}"))
 }
 
+/// `area` or `error`: a clap value parser for `--split` (`RegionSplit::Area` or
+/// `RegionSplit::ScreenError`).
+pub fn parse_split(split: &str) -> Result<bevy_aslod::plugin::RegionSplit, String> {
+    use bevy_aslod::plugin::RegionSplit;
+    match split {
+        "area" => Ok(RegionSplit::Area),
+        "error" => Ok(RegionSplit::ScreenError),
+        _ => Err(format!("not `area` or `error`: {split}")),
+    }
+}
+
 /// The asset folder (the model's own) and the file name to load from it.
 pub fn split_model_path(model: &Path) -> Result<(PathBuf, String), String> {
     let model = model

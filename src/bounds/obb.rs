@@ -51,6 +51,23 @@ impl Obb {
         8.0 * self.half_extents.x * self.half_extents.y * self.half_extents.z
     }
 
+    /// The box's projected area averaged over all view directions: a quarter of its
+    /// surface (Cauchy's formula for convex bodies), `2 · (hx·hy + hy·hz + hz·hx)`.
+    ///
+    /// ```
+    /// use bevy_aslod::bounds::Obb;
+    /// use glam::Vec3;
+    /// // A unit cube: surface 6, seen from anywhere 1.5 on average.
+    /// let cube = Obb::from_aabb(Vec3::ZERO, Vec3::ONE);
+    /// assert!((cube.mean_projected_area() - 1.5).abs() < 1e-6);
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn mean_projected_area(&self) -> f32 {
+        let h = self.half_extents;
+        2.0 * (h.x * h.y + h.y * h.z + h.z * h.x)
+    }
+
     /// Corner `i` for `i` in `0..8`: bit `k` of `i` selects the `+` side of axis `k`.
     ///
     /// Indices above 7 use their low three bits.

@@ -219,15 +219,14 @@ fn split_by_error(
     hysteresis: u32,
 ) {
     let mut jobs = Vec::with_capacity(items.len());
-    let mut rest = counts;
+    let (mut inputs, mut rest) = (inputs, counts);
     for item in items.iter_mut() {
         let n = input_len(item).min(rest.len());
         let (run, tail) = std::mem::take(&mut rest).split_at_mut(n);
-        rest = tail;
-        let (instance, slot) = (item.0, &mut *item.1);
+        let (model_inputs, input_tail) = inputs.split_at(n);
+        (rest, inputs) = (tail, input_tail);
         if item.4.is_none() && n > 1 {
-            let first = slot.first;
-            jobs.push((instance, slot, &inputs[first..first + run.len()], run));
+            jobs.push((item.0, &mut *item.1, model_inputs, run));
         }
     }
     par_chunks(&mut jobs, |chunk| {

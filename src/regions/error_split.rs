@@ -133,7 +133,7 @@ impl ErrorCurves {
         }
         let log2_mean_area = (0..per_region.len())
             .map(|r| {
-                let area = obbs.get(r).map_or(1.5, mean_projected_area);
+                let area = obbs.get(r).map_or(1.5, Obb::mean_projected_area);
                 area.max(f32::MIN_POSITIVE).log2()
             })
             .collect();
@@ -223,10 +223,11 @@ impl ErrorCurves {
         let total = total as f32;
         let t = if lo > hi {
             f32::INFINITY
-        } else if over(lo) <= 0.0 {
-            lo
         } else {
-            tolerance(lo, hi, hint, 1.0 + total / 1024.0, over)
+            match over(lo) {
+                at_lo if at_lo <= 0.0 => lo,
+                at_lo => tolerance((lo, at_lo), hi, hint, 1.0 + total / 1024.0, over),
+            }
         };
         for (r, count) in out.iter_mut().enumerate().take(n) {
             *count = at(t, r) as u32;
@@ -236,11 +237,17 @@ impl ErrorCurves {
 }
 
 /// The smallest `t` in `lo..=hi` (about: within `slack` triangles) at which `over(t)`, the
-/// triangles over the total, falling with `t`, is at most zero; `over(lo) > 0`. From `hint`
-/// when it lies inside, by steps that double until they bracket it, then by regula falsi
-/// (Illinois): the sum is piecewise linear in `t`.
-fn tolerance(mut lo: f32, mut hi: f32, hint: f32, slack: f32, over: impl Fn(f32) -> f32) -> f32 {
-    let (mut over_lo, mut over_hi) = (f32::NAN, f32::NAN);
+/// triangles over the total, falling with `t`, is at most zero; `over(lo) = at_lo > 0`. From
+/// `hint` when it lies inside, by steps that double until they bracket it, then by regula
+/// falsi (Illinois): the sum is piecewise linear in `t`.
+fn tolerance(
+    (mut lo, at_lo): (f32, f32),
+    mut hi: f32,
+    hint: f32,
+    slack: f32,
+    over: impl Fn(f32) -> f32,
+) -> f32 {
+    let (mut over_lo, mut over_hi) = (at_lo, f32::NAN);
     if hint > lo && hint < hi {
         let at_hint = over(hint);
         let mut step = 0.125;
@@ -269,9 +276,6 @@ fn tolerance(mut lo: f32, mut hi: f32, hint: f32, slack: f32, over: impl Fn(f32)
                 step *= 2.0;
             }
         }
-    }
-    if over_lo.is_nan() {
-        over_lo = over(lo);
     }
     if over_hi.is_nan() {
         over_hi = over(hi);
@@ -322,10 +326,4 @@ fn diagonal_of_triangles(pm: &crate::multires::ProgressiveMesh) -> f32 {
     }
     let d = (hi - lo).length();
     if d.is_finite() { d } else { 0.0 }
-}
-
-/// A box's projected area averaged over all directions: a quarter of its surface (Cauchy).
-fn mean_projected_area(obb: &Obb) -> f32 {
-    let h = obb.half_extents;
-    2.0 * (h.x * h.y + h.y * h.z + h.z * h.x)
 }

@@ -391,13 +391,7 @@ fn compare_partitioned(
     let obbs: Vec<Obb> = regions.regions().iter().map(|r| r.obb()).collect();
     let curves = ErrorCurves::new(&regions, &obbs);
     // Every region seen alike from all sides: its projected area is its box's mean one.
-    let areas: Vec<f32> = obbs
-        .iter()
-        .map(|o| {
-            let h = o.half_extents;
-            2.0 * (h.x * h.y + h.y * h.z + h.z * h.x)
-        })
-        .collect();
+    let areas: Vec<f32> = obbs.iter().map(Obb::mean_projected_area).collect();
     for row in rows {
         let ratio = row.ratio;
         let mut counts: Vec<usize> = regions
