@@ -94,9 +94,10 @@ bench-render: deps
 soak:
 	ASLOD_SOAK_FRAMES=10000 $(CARGO) test --all-features --test plugin soak -- --nocapture --test-threads=1
 
-# The instance bench: shared levels against meshoptimizer levels under VisibilityRange.
+# The instance bench: shared levels against meshoptimizer levels under VisibilityRange
+# (release: our code and Bevy's at the same optimisation).
 bench-instances: deps
-	xvfb-run -a $(CARGO) run --example render_cost -- --instances 1000,10000 --crowd 100 --frames 30
+	xvfb-run -a $(CARGO) run --release --example render_cost -- --instances 1000,10000 --crowd 100 --frames 30
 
 # ASLOD Figure 11 measured (docs/performance.md): the aerobic class at 960x540 (lavapipe is
 # bound by pixels there) and 240x135 (by geometry), 5 interleaved runs each, and the

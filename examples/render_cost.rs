@@ -48,7 +48,7 @@ use common::terrain;
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
 use bevy::camera::visibility::NoFrustumCulling;
-use bevy::camera::visibility::VisibilityRange;
+use bevy::camera::visibility::{VisibilityRange, VisibilitySystems};
 use bevy::core_pipeline::prepass::DepthPrepass;
 use bevy::gltf::Gltf;
 use bevy::mesh::skinning::SkinnedMesh;
@@ -69,7 +69,7 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::bevy_mesh::to_bevy_mesh;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
+    AslodPlugin, AslodStats, AslodSystems, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
     MultiresScene, PartitionSpec, PolygonBudget, RegionUpload, RegionUploadStats, SharedLevels,
 };
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches};
@@ -212,9 +212,33 @@ struct RenderClock {
 #[derive(Resource, Clone, Default)]
 struct SharedCost(Arc<Mutex<RenderCost>>);
 
+/// Bevy's visibility checks in the main world (frustum culling and `VisibilityRange`s) in
+/// the last frame: wall-clock time across `VisibilitySystems::CheckVisibility`, which starts
+/// after the plugin's `Upload` here (so that the plugin's systems do not run beside it).
+#[derive(Resource, Default)]
+struct VisibilityClock {
+    start: Option<Instant>,
+    ms: f64,
+}
+
 fn add_render_timers(app: &mut App) {
     let shared = SharedCost::default();
-    app.insert_resource(shared.clone());
+    app.insert_resource(shared.clone())
+        .init_resource::<VisibilityClock>()
+        .add_systems(
+            PostUpdate,
+            (
+                (|mut c: ResMut<VisibilityClock>| c.start = Some(Instant::now()))
+                    .after(AslodSystems::Upload)
+                    .after(VisibilitySystems::VisibilityPropagate)
+                    .before(VisibilitySystems::CheckVisibility),
+                (|mut c: ResMut<VisibilityClock>| {
+                    c.ms = c.start.map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3)
+                })
+                .after(VisibilitySystems::CheckVisibility)
+                .before(VisibilitySystems::MarkNewlyHiddenEntitiesInvisible),
+            ),
+        );
     let Some(render) = app.get_sub_app_mut(RenderApp) else {
         return;
     };
@@ -1086,8 +1110,12 @@ fn visible(app: &mut App) -> (u64, u64) {
 
 /// One frame of the instance bench.
 struct InstanceFrame {
-    /// The plugin's systems (allocation and update).
+    /// The plugin's systems (allocation, update and deformation).
     ours_ms: f64,
+    /// The same, apart.
+    parts_ms: [f64; 3],
+    /// Bevy's visibility checks ([`VisibilityClock`]).
+    visibility_ms: f64,
     /// The render world's extraction, preparation and instance rebuild.
     render_ms: f64,
     /// [`mesh_asset_bytes`].
@@ -1145,6 +1173,8 @@ fn run_way(
         let cost = render_cost(&app);
         out.push(InstanceFrame {
             ours_ms: stats.allocation_ms + stats.update_ms + stats.deform_ms,
+            parts_ms: [stats.allocation_ms, stats.update_ms, stats.deform_ms],
+            visibility_ms: app.world().resource::<VisibilityClock>().ms,
             render_ms: cost.extract_ms + cost.prepare_ms + cost.instances_ms,
             mesh_bytes: mesh_asset_bytes(&app),
             triangles,
@@ -1185,7 +1215,7 @@ fn run_way(
     Ok((out, views))
 }
 
-/// `n` spheres drawn `way` (`a`, `b` or `c`).
+/// `n` spheres drawn `way` (`a`, `b`, `c`, or `c1` for one region per instance).
 fn spawn_spheres(app: &mut App, way: &str, n: usize) -> Result<(), String> {
     let sphere = instance_sphere()?;
     let material = app
@@ -1221,8 +1251,13 @@ fn spawn_spheres(app: &mut App, way: &str, n: usize) -> Result<(), String> {
             }
         }
         _ => {
-            let asset = MultiresMesh::from_bevy_mesh(&sphere, PartitionSpec::Clusters(4))
-                .map_err(|e| e.to_string())?;
+            // `c1`: the whole sphere as one region, one draw per instance as in (b).
+            let spec = if way == "c1" {
+                PartitionSpec::Single
+            } else {
+                PartitionSpec::Clusters(4)
+            };
+            let asset = MultiresMesh::from_bevy_mesh(&sphere, spec).map_err(|e| e.to_string())?;
             let asset = app
                 .world_mut()
                 .resource_mut::<Assets<MultiresMesh>>()
@@ -1299,9 +1334,9 @@ fn run_instances(counts: &[usize], crowd: Option<usize>, frames: usize) -> Resul
         std::thread::available_parallelism().map_or(0, usize::from)
     );
     println!(
-        "| scene | instances | way | budget | ours ms | render world ms | mesh bytes | triangles visible | mesh entities visible | frame ms | PSNR against (a), median of 3 views (worst) |"
+        "| scene | instances | way | budget | ours ms | Bevy visibility ms | render world ms | mesh bytes | triangles visible | mesh entities visible | frame ms | PSNR against (a), median of 3 views (worst) |"
     );
-    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let scenes = counts
         .iter()
         .map(|&n| (Field::Spheres, n))
@@ -1357,6 +1392,16 @@ fn run_instances(counts: &[usize], crowd: Option<usize>, frames: usize) -> Resul
             c2,
             c2_views,
         ));
+        if field == Field::Spheres {
+            // One region per instance (one draw each, as in (b)) under the same budget.
+            let (c1, c1_views) = run_way("c1", field, n, frames, Some(matched.max(1)))?;
+            rows.push((
+                format!("(c){shared}, one region, same budget"),
+                Some(matched),
+                c1,
+                c1_views,
+            ));
+        }
         for (way, budget, frames, views) in &rows {
             let mut psnr: Vec<f64> = views
                 .iter()
@@ -1365,9 +1410,10 @@ fn run_instances(counts: &[usize], crowd: Option<usize>, frames: usize) -> Resul
                 .collect();
             psnr.sort_by(f64::total_cmp);
             println!(
-                "| {scene} | {n} | {way} | {} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} ({:.1}) |",
+                "| {scene} | {n} | {way} | {} | {:.2} | {:.2} | {:.2} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} ({:.1}) |",
                 budget.map_or("–".to_string(), |b| b.to_string()),
                 median(frames, &|f| f.ours_ms),
+                median(frames, &|f| f.visibility_ms),
                 median(frames, &|f| f.render_ms),
                 median(frames, &|f| f.mesh_bytes as f64),
                 median(frames, &|f| f.triangles as f64),
@@ -1375,6 +1421,15 @@ fn run_instances(counts: &[usize], crowd: Option<usize>, frames: usize) -> Resul
                 median(frames, &|f| f.frame_ms),
                 psnr.get(psnr.len() / 2).copied().unwrap_or(0.0),
                 psnr.first().copied().unwrap_or(0.0),
+            );
+        }
+        for (way, _, frames, _) in rows.iter().filter(|r| r.1.is_some()) {
+            let part = |k: usize| median(frames, &|f| f.parts_ms[k]);
+            println!(
+                "{scene} {n} {way}: ours = allocation {:.2} + update {:.2} + deform {:.2} ms (medians)",
+                part(0),
+                part(1),
+                part(2)
             );
         }
         println!(
