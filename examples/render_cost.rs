@@ -69,8 +69,9 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::bevy_mesh::to_bevy_mesh;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
-    AslodPlugin, AslodStats, AslodSystems, LodRegion, MultiresInstance, MultiresMesh, MultiresModel,
-    MultiresScene, PartitionSpec, PolygonBudget, RegionUpload, RegionUploadStats, SharedLevels,
+    AslodPlugin, AslodStats, AslodSystems, LodRegion, MultiresInstance, MultiresMesh,
+    MultiresModel, MultiresScene, PartitionSpec, PolygonBudget, RegionUpload, RegionUploadStats,
+    SharedLevels,
 };
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches};
 use std::collections::HashMap;
