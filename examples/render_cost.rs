@@ -24,9 +24,10 @@
 //! builds today, a chain of meshoptimizer levels each half the one before, shared meshes
 //! swapped by `VisibilityRange` at distances √2 apart; (c) `SharedLevels` (the crowd:
 //! `MultiresScene`) under a budget equal to the median triangles (b) drew in view, and again
-//! under the budget, found by secant steps, at which it draws as many in view. Prints per
-//! way (medians over the path): our systems, the render world's extraction, preparation and
-//! instance rebuild, the bytes of `Mesh` assets (vertex and index data, what the mesh
+//! under the budget, found by secant steps, at which it draws as many in view (the spheres
+//! then once more with one region each, under that budget). Prints per way (medians over
+//! the path): our systems, Bevy's visibility checks (frustum culling and `VisibilityRange`),
+//! the render world's extraction, preparation and instance rebuild, the bytes of `Mesh` assets (vertex and index data, what the mesh
 //! allocator holds), the triangles and mesh entities visible, the whole frame, and the PSNR
 //! against (a) of three views of the path rendered at 1280×720 (dancers paused).
 //!
