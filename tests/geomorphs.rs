@@ -20,9 +20,12 @@ use std::collections::HashSet;
 
 const T: f32 = 0.25;
 
+/// Built with the topology kept (`permissive(false)`): these tests check that the shown
+/// surface stays closed, which permissive collapses (a part erased, a pinch) do not keep.
 fn regions(mesh: &IndexedMesh, k: usize) -> RegionMesh {
     let partition = Partition::clusters(mesh, k).unwrap();
-    RegionMesh::build(mesh, &partition, &BuildOptions::default()).unwrap()
+    let options = BuildOptions::default().with_permissive(false);
+    RegionMesh::build(mesh, &partition, &options).unwrap()
 }
 
 /// Every region's triangles, in source vertices.

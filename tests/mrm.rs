@@ -172,10 +172,11 @@ fn the_sections_are_listed_in_order_with_their_sizes() {
     assert_eq!(
         tags,
         [
-            "MESH", "POS", "NRM", "UV0", "JNT", "WGT", "IDX", "STEP", "CORN", "PAIR", "ERRS",
-            "VIEW"
+            "MESH", "POS", "NRM", "UV0", "JNT", "WGT", "IDX", "STEP", "CORN", "PAIR", "FLDS",
+            "ERRS", "VIEW"
         ]
     );
+    assert_eq!(sections[10].1, 2, "FLDS: two widths");
     let n = pm.vertices().vertex_count() as u64;
     assert_eq!(sections[1].1, 12 * n);
     assert_eq!(

@@ -30,7 +30,7 @@ pub use gltf_import::{
 pub use limits::LoadLimits;
 pub use obj::{MAX_CONCAVE_CORNERS, load_obj, parse_obj, write_obj, write_obj_groups};
 pub use ply::{load_ply, parse_ply};
-pub use weld::{WeldMap, weld_positions};
+pub use weld::{WeldMap, weld_positions, weld_positions_within};
 
 use glam::{Vec2, Vec3, Vec4};
 use std::path::Path;

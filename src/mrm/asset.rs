@@ -32,13 +32,15 @@ const ENTRY_SECTIONS: [([u8; 4], bool); 13] = [
 ];
 
 /// The sections of one region (a container nested in `RGNS`), in order.
-const REGION_SECTIONS: [([u8; 4], bool); 9] = [
+const REGION_SECTIONS: [([u8; 4], bool); 10] = [
     (*b"RGN ", true),
     (*b"GLOB", true),
     (*b"IDX ", true),
     (*b"STEP", true),
     (*b"CORN", true),
     (*b"PAIR", true),
+    // Required from version 4 (as a progressive mesh's).
+    (*b"FLDS", false),
     (*b"ERRS", true),
     (*b"VIEW", false),
     (*b"LIST", true),
@@ -112,6 +114,8 @@ fn build_bytes(b: &BuildInfo) -> Vec<u8> {
     for x in [o.normal_weight, o.uv_weight, o.color_weight] {
         out.extend_from_slice(&x.to_le_bytes());
     }
+    out.extend_from_slice(&o.weld_distance.to_le_bytes());
+    out.push(u8::from(o.permissive));
     out
 }
 
@@ -340,12 +344,18 @@ fn read_build(s: Section<'_>, version: u32) -> Result<BuildInfo, MrmError> {
         normal_weight: 0.0,
         uv_weight: 0.0,
         color_weight: 0.0,
+        weld_distance: 0.0,
+        permissive: false,
     };
     let mut options = options;
     if version >= 3 {
         options.normal_weight = r.f64()?;
         options.uv_weight = r.f64()?;
         options.color_weight = r.f64()?;
+    }
+    if version >= 4 {
+        options.weld_distance = r.f32()?;
+        options.permissive = r.u8()? != 0;
     }
     r.finish()?;
     Ok(BuildInfo {
@@ -488,7 +498,7 @@ fn read_entry(
     let variable = if has_variable != 0 {
         let s = section(&sections, b"VARI")?;
         let nested = container::read(s.bytes, s.offset, version, &progressive::SECTIONS)?;
-        Some(progressive::read(&nested, limits)?)
+        Some(progressive::read(&nested, version, limits)?)
     } else {
         None
     };
@@ -568,7 +578,7 @@ fn read_region(
         return Err(rg.invalid(4 * k, "a vertex names one past the source's vertex table"));
     }
     let vertices = source.subset(&global);
-    let mesh = progressive::read_mesh(&sections, &r, vertices, &counts, narrow, has_view)?;
+    let mesh = progressive::read_mesh(&sections, &r, version, vertices, &counts, narrow, has_view)?;
 
     let mut rl = Reader::new(section(&sections, b"LIST")?);
     let [nb, nf, nn, np, ne] = list_counts;

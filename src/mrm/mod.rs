@@ -36,7 +36,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! # Layout (format version 3)
+//! # Layout (format version 4)
 //!
 //! Little-endian throughout. Every file is a **container**, and so are the assets and
 //! regions inside it: a header and a section table,
@@ -57,7 +57,7 @@
 //!
 //! | tag | contents |
 //! |---|---|
-//! | `SRC ` | source hash (`u64`, FNV-1a of the source file); source name, partition, writer (strings); skinned (`u8`) and δ (`f32`); the [`BuildOptions`]: `min_triangles` (`u64`), `max_error` (`f32`), `border_weight`, `min_normal_cos`, `regularization`, `local_weight`, `weight_exponent` (`f64` each), `view_dependent` (`u8`), `pair_distance` (`f32`), `operator` (`u8`: 0 edge, 1 triangle); from version 3, `normal_weight`, `uv_weight`, `color_weight` (`f64` each; 0 for older files) |
+//! | `SRC ` | source hash (`u64`, FNV-1a of the source file); source name, partition, writer (strings); skinned (`u8`) and δ (`f32`); the [`BuildOptions`]: `min_triangles` (`u64`), `max_error` (`f32`), `border_weight`, `min_normal_cos`, `regularization`, `local_weight`, `weight_exponent` (`f64` each), `view_dependent` (`u8`), `pair_distance` (`f32`), `operator` (`u8`: 0 edge, 1 triangle); from version 3, `normal_weight`, `uv_weight`, `color_weight` (`f64` each; 0 for older files); from version 4, `weld_distance` (`f32`) and `permissive` (`u8`) (0 and off for older files) |
 //! | `KEYS` | asset count `A` (`u32`); per asset: its key (string) and its container's length (`u64`) |
 //! | `ASET` | the `A` asset containers, one after the other |
 //!
@@ -79,7 +79,7 @@
 //! |---|---|---|
 //! | `RGN ` | yes | local vertex count `L`, own vertices, base triangles, index count `I`, steps `S`, corner records `C`, pairs `P` (`u32` each); layout, view data and two zero bytes (`u8` each, as `MESH`); bounds of its own vertices (min, max: 6 × `f32`); counts of border triangles, fin-prone triangles, neighbours, position links and front events (`u32` each) |
 //! | `GLOB` | yes | `L` source vertex ids (`u32`): local vertex → source vertex |
-//! | `IDX ` … `VIEW` | as below | the region's records over its local vertices |
+//! | `IDX ` … `VIEW` | as below | the region's records over its local vertices (`FLDS` from version 4) |
 //! | `LIST` | yes | border triangles, fin-prone triangles, neighbour regions, position links (`u32` each, in that order); front events (step, region, corner, before, after: 5 × `u32`) |
 //!
 //! **A progressive mesh** (its first section is `MESH`; every version 1 file):
@@ -95,24 +95,26 @@
 //! | `TAN ` | flag 16 | `V` tangents, 4 × `f32` (from version 3) |
 //! | `ATTR` | flag 32 | further attributes (from version 3): their count `K` (`u32`, at most 32); per attribute its name (string), Bevy id (`u64`), scalar type (`u8`: 0 `f32`, 1 `f16`, 2 `u32`, 3 `i32`, 4 `u16`, 5 `i16`, 6 unorm16, 7 snorm16, 8 `u8`, 9 `i8`, 10 unorm8, 11 snorm8, 12 `f64`, 13 BGRA unorm8), component count (`u8`: 1, 2 or 4; 3 for 32- and 64-bit scalars; 4 for BGRA), two zero bytes, then `V` records |
 //! | `IDX ` | yes | the full-detail index buffer in slot order (base triangles first: coarse to fine), `I` indices (`u16` narrow, `u32` wide) |
-//! | `STEP` | yes | `S` step headers, `corners << 4 \| pairs << 2 \| removed` (`u16` narrow, `u32` wide) |
-//! | `CORN` | yes | `C` corner records, `corner << 1 \| pair` (3 bytes narrow, `u32` wide) |
+//! | `STEP` | yes | `S` step headers, `corners << (p + 1 + r) \| pairs << r \| removed` with the widths `p` and `r` of `FLDS` (`u16` narrow, `u32` wide) |
+//! | `CORN` | yes | `C` corner records, `corner << p \| pair`: the corner's index in `IDX ` and its pair's among the step's (3 bytes narrow, `u32` wide) |
 //! | `PAIR` | yes | `P` `[old, new]` vertex pairs (2 × `u16` narrow, 2 × `u32` wide) |
+//! | `FLDS` | from version 4 | the records' field widths: `p`, the bits of a corner record's pair selector (`u8`, 1 to 8; a header's pair count takes `p + 1` bits), and `r`, the bits of a header's removed-triangle count (`u8`, 2 to 8); a narrow mesh's `p + 1 + r` is under 16. Files before version 4 have none: `p` = 1 and `r` = 2 (`corners << 4 \| pairs << 2 \| removed`, `corner << 1 \| pair`) |
 //! | `ERRS` | yes | the simplification table (Hoxha's value per collapse): `S` errors relative to the diagonal, the top 16 bits of an `f32`, monotone |
 //! | `VIEW` | flag | diagonal (`f32`); vertex width (`u8`: 1 for `u16`); `S` `[u, w]` pairs; `S` sphere centre offsets (3 × `i8`); `S` radii and `S` errors (`u16`, as `ERRS`); `S` normal cones (2 octahedral bytes and a half-angle byte) |
 //!
 //! Reading checks, before anything is built: the magic, the version (a newer one is
 //! [`MrmError::NewerVersion`]), every checksum, the order and contiguity of the sections,
 //! that every count fits its section (so nothing is allocated beyond what the file's size
-//! justifies), and the records themselves (every index and pair names a vertex, every step
-//! removes live triangles and rewrites corners of the triangles that stay, every stored
-//! bound is finite; every region, border triangle, front event and position link a region
-//! names is in range), so assets read from any file are memory-safe for every polygon cache,
-//! region cache and refinement. What is not re-derived: that the view data's bounds nest (a
-//! file whose bounds were edited refines crack-free but not monotonically, so
-//! [`ToleranceSearch`](crate::refine::ToleranceSearch) may then report a level over its
-//! count), that the errors are the build's, and that a file's borders and fronts are the
-//! ones its build found (edited ones stay in range but may crack).
+//! justifies), and the records themselves (their field widths, every index and pair names
+//! a vertex, every step removes live triangles and rewrites corners of the triangles that
+//! stay with its own pairs, every stored bound is finite; every region, border triangle,
+//! front event and position link a region names is in range), so assets read from any file
+//! are memory-safe for every polygon cache, region cache and refinement. What is not
+//! re-derived: that the view data's bounds nest (a file whose bounds were edited refines
+//! crack-free but not monotonically, so [`ToleranceSearch`](crate::refine::ToleranceSearch)
+//! may then report a level over its count), that the errors are the build's, and that a
+//! file's borders and fronts are the ones its build found (edited ones stay in range but may
+//! crack).
 
 mod asset;
 mod bake;
@@ -130,9 +132,9 @@ use glam::Mat4;
 use thiserror::Error;
 
 /// The format version this crate writes and the newest it reads. Version 1 files hold a
-/// progressive mesh only, and versions 1 and 2 no tangents or further attributes; they
-/// still load.
-pub const FORMAT_VERSION: u32 = 3;
+/// progressive mesh only, versions 1 and 2 no tangents or further attributes, and versions
+/// 1 to 3 the classic record widths (no `FLDS`); they still load.
+pub const FORMAT_VERSION: u32 = 4;
 
 /// Everything a multiresolution asset holds, without Bevy: what an `.mrm` file stores per
 /// entry, and what the plugin's `MultiresMesh` is made from without building anything.
@@ -462,7 +464,8 @@ pub fn read_progressive_with_limits(
 ) -> Result<ProgressiveMesh, MrmError> {
     within("file_bytes", bytes.len(), limits.file_bytes)?;
     let sections = container::read(bytes, 0, FORMAT_VERSION, &progressive::SECTIONS)?;
-    progressive::read(&sections, limits)
+    let version = container::peek(bytes).map_or(FORMAT_VERSION, |(v, _)| v);
+    progressive::read(&sections, version, limits)
 }
 
 /// The sections of a `.mrm` file (tag and length in bytes), after checking the header, the

@@ -5,11 +5,11 @@ use super::{FORMAT_VERSION, MrmError};
 use crate::mesh::{AttributeFormat, IndexedMesh, LoadLimits, Scalar, VertexAttribute};
 use crate::multires::ProgressiveMesh;
 use crate::multires::hierarchy::{Moved, ViewData};
-use crate::multires::records::{Corner, Header, Layout, Records, error_from_u16};
+use crate::multires::records::{Corner, Fields, Header, Layout, Records, error_from_u16};
 use glam::{Vec2, Vec3, Vec4};
 
 /// The sections, in file order, and whether each is required.
-pub(super) const SECTIONS: [([u8; 4], bool); 14] = [
+pub(super) const SECTIONS: [([u8; 4], bool); 15] = [
     (*b"MESH", true),
     (*b"POS ", true),
     (*b"NRM ", false),
@@ -22,9 +22,14 @@ pub(super) const SECTIONS: [([u8; 4], bool); 14] = [
     (*b"STEP", true),
     (*b"CORN", true),
     (*b"PAIR", true),
+    // Required from version 4 (`read_fields` checks).
+    (*b"FLDS", false),
     (*b"ERRS", true),
     (*b"VIEW", false),
 ];
+
+/// The first format version whose records have their own field widths (`FLDS`).
+const FIELDS_VERSION: u32 = 4;
 
 const NORMALS: u8 = 1;
 const UVS: u8 = 2;
@@ -138,7 +143,8 @@ pub(super) fn vertex_sections(v: &IndexedMesh) -> (u8, Sections) {
     (attributes, sections)
 }
 
-/// The sections of a mesh's records, error table and view data (`IDX ` to `VIEW`).
+/// The sections of a mesh's records, their field widths, error table and view data (`IDX `
+/// to `VIEW`).
 pub(super) fn record_sections(sections: &mut Sections, mesh: &ProgressiveMesh) {
     match &mesh.records {
         Layout::Narrow(r) => records(sections, r, |x: u16| x.to_le_bytes().to_vec()),
@@ -177,6 +183,7 @@ fn records<V: Copy, H: Header + Into<u32>, C: Corner>(
     ));
     let pairs = r.pairs.iter().flatten().flat_map(|&v| bytes(v)).collect();
     sections.push((*b"PAIR", pairs));
+    sections.push((*b"FLDS", vec![r.fields.pair_bits, r.fields.removed_bits]));
 }
 
 fn view_bytes(view: &ViewData) -> Vec<u8> {
@@ -211,9 +218,11 @@ pub(super) fn section<'a>(
         .ok_or_else(|| MrmError::MissingSection(super::container::tag_name(*tag)))
 }
 
-/// Reads a progressive mesh from checked sections (see [`super::container::read`]).
+/// Reads a progressive mesh from checked sections (see [`super::container::read`]) of a
+/// file of format `version`.
 pub(super) fn read(
     sections: &[Section<'_>],
+    version: u32,
     limits: &LoadLimits,
 ) -> Result<ProgressiveMesh, MrmError> {
     let mesh = section(sections, b"MESH")?;
@@ -232,14 +241,16 @@ pub(super) fn read(
     super::within("vertices", n, limits.vertices)?;
     super::within("triangles", counts.indices / 3, limits.triangles)?;
     let vertices = read_vertices(sections, &r, n, attributes)?;
-    read_mesh(sections, &r, vertices, &counts, narrow, has_view)
+    read_mesh(sections, &r, version, vertices, &counts, narrow, has_view)
 }
 
 /// The records, error table and view data of a mesh over `vertices`, as `counts`, `narrow`
-/// and `has_view` declare them in the header `r` read (errors about those point there).
+/// and `has_view` declare them in the header `r` read (errors about those point there), in
+/// a file of format `version`.
 pub(super) fn read_mesh(
     sections: &[Section<'_>],
     r: &Reader<'_>,
+    version: u32,
     vertices: IndexedMesh,
     counts: &Counts,
     narrow: u8,
@@ -254,10 +265,12 @@ pub(super) fn read_mesh(
     if sections.iter().any(|s| &s.tag == b"VIEW") != (has_view != 0) {
         return Err(r.invalid(4, "a section is missing or present against the flags"));
     }
+    let fields = read_fields(sections, version, narrow == 1)?;
     let records = if narrow == 1 {
         Layout::Narrow(read_records::<u16, u16, [u8; 3], 2, 2, 3>(
             sections,
             counts,
+            fields,
             u16::from_le_bytes,
             u16::from_le_bytes,
             |b| <[u8; 3]>::pack(u32::from_le_bytes([b[0], b[1], b[2], 0])),
@@ -266,6 +279,7 @@ pub(super) fn read_mesh(
         Layout::Wide(read_records::<u32, u32, u32, 4, 4, 4>(
             sections,
             counts,
+            fields,
             u32::from_le_bytes,
             u32::from_le_bytes,
             u32::from_le_bytes,
@@ -303,6 +317,43 @@ pub(super) fn read_mesh(
         errors,
         view,
     })
+}
+
+/// The field widths of a mesh's records (`narrow` or wide): its `FLDS` section from format
+/// version 4 (a pair selector of 1 to 8 bits and a removed count of 2 to 8 bits, with room
+/// for a corner count in a narrow mesh's 16-bit headers), [`Fields::CLASSIC`] before.
+fn read_fields(sections: &[Section<'_>], version: u32, narrow: bool) -> Result<Fields, MrmError> {
+    let found = sections.iter().find(|s| &s.tag == b"FLDS").copied();
+    if version < FIELDS_VERSION {
+        return match found {
+            Some(s) => Err(Reader::new(s).invalid(0, "a FLDS section before format version 4")),
+            None => Ok(Fields::CLASSIC),
+        };
+    }
+    let Some(s) = found else {
+        return Err(MrmError::MissingSection("FLDS".into()));
+    };
+    let mut r = Reader::new(s);
+    let [pair_bits, removed_bits] = r.array::<2>()?;
+    r.finish()?;
+    let fields = Fields {
+        pair_bits,
+        removed_bits,
+    };
+    if !(Fields::CLASSIC.pair_bits..=Fields::MAX_BITS).contains(&pair_bits) {
+        return Err(r.invalid(0, "the pair selector width is not 1 to 8 bits"));
+    }
+    if !(Fields::CLASSIC.removed_bits..=Fields::MAX_BITS).contains(&removed_bits) {
+        return Err(r.invalid(1, "the removed-triangle count width is not 2 to 8 bits"));
+    }
+    if narrow && !<u16 as Header>::fits(fields) {
+        return Err(r.invalid(
+            0,
+            "the field widths leave 16-bit step headers no corner count",
+        ));
+    }
+    debug_assert!(fields.is_valid());
+    Ok(fields)
 }
 
 /// The vertex table (`POS ` to `WGT `) of `n` vertices with the attributes `attributes`
@@ -472,13 +523,16 @@ fn first_out_of_range<V: Copy + Into<u32>>(values: &[V], n: usize) -> Option<usi
     values.iter().position(|&v| v.into() as usize >= n)
 }
 
-/// The records of one layout, checked so that every cache and refinement walk stays in
-/// bounds: indices and pairs name existing vertices; each step removes at most three of the
-/// live triangles, never below the base, and rewrites corners of the triangles that stay,
-/// naming one of its own pairs; the per-step counts add up to the sections' lengths.
+/// The records of one layout with the field widths `fields`, checked so that every cache
+/// and refinement walk stays in bounds: indices and pairs name existing vertices; each step
+/// removes live triangles (at most as many as its header's count holds), never below the
+/// base, has at most as many pairs as a corner record's selector names, and rewrites
+/// corners of the triangles that stay, naming one of its own pairs; the per-step counts add
+/// up to the sections' lengths.
 fn read_records<V, H, C, const VB: usize, const HB: usize, const CB: usize>(
     sections: &[Section<'_>],
     counts: &Counts,
+    fields: Fields,
     vertex: impl Fn([u8; VB]) -> V,
     header: impl Fn([u8; HB]) -> H,
     corner: impl Fn([u8; CB]) -> C,
@@ -501,34 +555,40 @@ where
         return Err(rp.invalid(VB * k, "a pair names a vertex past the vertex table"));
     }
     let pairs: Vec<[V; 2]> = raw.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+    let records = Records {
+        indices,
+        steps,
+        corners,
+        pairs,
+        fields,
+    };
     let (mut live, mut c, mut p) = (counts.indices / 3, 0usize, 0usize);
-    for (s, h) in steps.iter().enumerate() {
-        let (nc, np, removed) = h.unpack();
-        if removed > live - counts.base || np > 2 {
-            return Err(rs.invalid(HB * s, "a step removes past the base or has over two pairs"));
+    for (s, (nc, np, removed)) in records.headers().enumerate() {
+        if removed > live - counts.base || np > fields.max_pairs() {
+            return Err(rs.invalid(
+                HB * s,
+                "a step removes past the base or has more pairs than a corner record names",
+            ));
         }
         live -= removed;
-        let (Some(step_corners), true) = (corners.get(c..c + nc), p + np <= pairs.len()) else {
+        let (Some(step_corners), true) = (
+            records.corners.get(c..c + nc),
+            p + np <= records.pairs.len(),
+        ) else {
             return Err(rs.invalid(HB * s, "a step names more corners or pairs than there are"));
         };
-        for (k, rec) in step_corners.iter().enumerate() {
-            let v = rec.get();
-            if (v >> 1) as usize >= 3 * live || (v & 1) as usize >= np {
+        for (k, &rec) in step_corners.iter().enumerate() {
+            if records.corner_slot(rec) >= 3 * live || records.corner_pair(rec) >= np {
                 return Err(rc.invalid(CB * (c + k), "a corner record is out of range"));
             }
         }
         c += nc;
         p += np;
     }
-    if live != counts.base || c != corners.len() || p != pairs.len() {
+    if live != counts.base || c != records.corners.len() || p != records.pairs.len() {
         return Err(rs.invalid(0, "the steps do not add up to the records"));
     }
-    Ok(Records {
-        indices,
-        steps,
-        corners,
-        pairs,
-    })
+    Ok(records)
 }
 
 fn read_view(section: Section<'_>, vertices: usize, steps: usize) -> Result<ViewData, MrmError> {
@@ -585,4 +645,152 @@ fn read_view(section: Section<'_>, vertices: usize, steps: usize) -> Result<View
         cone,
         diagonal,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::multires::records::{classic, error_to_u16, permissive};
+
+    /// A mesh of 60 vertices over `records` (of [`permissive`]'s triangles).
+    fn mesh_of(records: &crate::multires::records::Unpacked, base: u32) -> ProgressiveMesh {
+        let positions = (0..60)
+            .map(|i| Vec3::new(i as f32, (i % 7) as f32, (i % 3) as f32))
+            .collect();
+        ProgressiveMesh {
+            vertices: IndexedMesh::new(positions, Vec::new()),
+            base_triangles: base,
+            records: Layout::new(records, 60).expect("the records fit"),
+            errors: vec![error_to_u16(0.01), error_to_u16(0.02)],
+            view: None,
+        }
+    }
+
+    /// `bytes` (a progressive-mesh file) written again as format `version` with its
+    /// sections passed through `edit`.
+    fn rewritten(bytes: &[u8], version: u32, edit: impl FnOnce(&mut Sections)) -> Vec<u8> {
+        let read = super::super::container::read(bytes, 0, FORMAT_VERSION, &SECTIONS).unwrap();
+        let mut sections: Sections = read.iter().map(|s| (s.tag, s.bytes.to_vec())).collect();
+        edit(&mut sections);
+        super::super::container::write(version, &sections)
+    }
+
+    fn without_fields(sections: &mut Sections) {
+        sections.retain(|(tag, _)| tag != b"FLDS");
+    }
+
+    fn with_fields(fields: &[u8]) -> impl FnOnce(&mut Sections) + '_ {
+        move |sections| {
+            for (tag, bytes) in sections {
+                if tag == b"FLDS" {
+                    *bytes = fields.to_vec();
+                }
+            }
+        }
+    }
+
+    /// What reading `bytes` gives: the error's section and message, or the mesh's fields.
+    fn outcome(bytes: &[u8]) -> Result<Fields, (String, &'static str)> {
+        match super::super::read_progressive(bytes) {
+            Ok(pm) => Ok(pm.records.fields()),
+            Err(MrmError::Invalid { section, what, .. }) => Err((section, what)),
+            Err(MrmError::MissingSection(section)) => Err((section, "missing")),
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    #[test]
+    fn a_step_with_many_pairs_round_trips_with_its_fields() {
+        let pm = mesh_of(&permissive(), 3);
+        assert_eq!(
+            pm.records.fields(),
+            Fields {
+                pair_bits: 4,
+                removed_bits: 3
+            }
+        );
+        let bytes = super::super::write_progressive(&pm);
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 4);
+        let sections = super::super::sections(&bytes).unwrap();
+        assert!(sections.contains(&("FLDS".into(), 2)), "{sections:?}");
+        let back = super::super::read_progressive(&bytes).unwrap();
+        assert_eq!(back, pm);
+        assert_eq!(back.records.removed(), [6, 1]);
+        assert_eq!(super::super::write_progressive(&back), bytes);
+        // A cache walks it.
+        let mut cache = crate::multires::PolygonCache::new(&back);
+        cache.set_level(&back, 2);
+        assert_eq!(cache.indices().len(), 9);
+        assert_eq!(&cache.indices()[..3], &[50, 51, 42]);
+    }
+
+    #[test]
+    fn a_file_before_version_4_has_the_classic_fields() {
+        let pm = mesh_of(&classic(), 6);
+        assert_eq!(pm.records.fields(), Fields::CLASSIC);
+        let v4 = super::super::write_progressive(&pm);
+        let v3 = rewritten(&v4, 3, without_fields);
+        assert_eq!(outcome(&v3), Ok(Fields::CLASSIC));
+        assert_eq!(super::super::read_progressive(&v3).unwrap(), pm);
+        // Written again, it is a version 4 file with the classic widths.
+        assert_eq!(super::super::write_progressive(&pm), v4);
+        let fields = Fields::CLASSIC;
+        assert_eq!(
+            rewritten(
+                &v4,
+                4,
+                with_fields(&[fields.pair_bits, fields.removed_bits])
+            ),
+            v4
+        );
+        // Records that need wider fields than a version 3 file has are refused.
+        let wide = super::super::write_progressive(&mesh_of(&permissive(), 3));
+        let err = outcome(&rewritten(&wide, 3, without_fields)).unwrap_err();
+        assert_eq!(err.0, "STEP", "{err:?}");
+        // And a version 3 file has no FLDS.
+        let err = outcome(&rewritten(&v4, 3, |_| {})).unwrap_err();
+        assert_eq!(
+            err,
+            ("FLDS".into(), "a FLDS section before format version 4")
+        );
+    }
+
+    #[test]
+    fn a_version_4_file_needs_valid_fields() {
+        let good = super::super::write_progressive(&mesh_of(&permissive(), 3));
+        assert_eq!(
+            outcome(&rewritten(&good, 4, without_fields)),
+            Err(("FLDS".into(), "missing"))
+        );
+        for (fields, what) in [
+            (&[0, 3][..], "the pair selector width is not 1 to 8 bits"),
+            (&[9, 3], "the pair selector width is not 1 to 8 bits"),
+            (
+                &[4, 1],
+                "the removed-triangle count width is not 2 to 8 bits",
+            ),
+            (
+                &[4, 9],
+                "the removed-triangle count width is not 2 to 8 bits",
+            ),
+            (
+                &[8, 8],
+                "the field widths leave 16-bit step headers no corner count",
+            ),
+            (&[4, 3, 0], "bytes left over at the end of the section"),
+        ] {
+            let bytes = rewritten(&good, 4, with_fields(fields));
+            assert_eq!(outcome(&bytes), Err(("FLDS".into(), what)), "{fields:?}");
+        }
+        assert!(matches!(
+            super::super::read_progressive(&rewritten(&good, 4, with_fields(&[4]))),
+            Err(MrmError::Truncated { .. })
+        ));
+        // Other valid widths than the writer's decode other records, which are checked.
+        for fields in [[1, 2], [4, 2], [2, 3], [5, 3], [4, 4]] {
+            let bytes = rewritten(&good, 4, with_fields(&fields));
+            assert!(outcome(&bytes).is_err(), "{fields:?}");
+        }
+        assert!(outcome(&rewritten(&good, 4, with_fields(&[4, 3]))).is_ok());
+    }
 }

@@ -20,7 +20,7 @@ use super::heap::IndexedHeap;
 use super::hierarchy::ViewData;
 use super::quadric::{AttributeQuadrics, Quadric};
 use super::records::{Layout, Unpacked, error_to_u16};
-use crate::mesh::{IndexedMesh, MeshError, weld_positions};
+use crate::mesh::{IndexedMesh, MeshError, weld_positions_within};
 use glam::{DVec3, Vec3};
 
 /// Settings of [`ProgressiveMesh::build`]. Start from `default()` and change a field with its
@@ -129,6 +129,31 @@ pub struct BuildOptions {
     /// Weight of the vertex colours ([`COLOR_ID`](crate::mesh::COLOR_ID), RGBA as floats)
     /// in the collapse cost (see [`uv_weight`](Self::uv_weight)). Default: `0.25`.
     pub color_weight: f64,
+    /// Vertices closer than this (relative to the bounding-box diagonal) are one point to the
+    /// topology, as vertices at equal positions are ([`weld_positions_within`]): exported
+    /// meshes often leave the two sides of a seam a few float steps apart, which exact
+    /// equality sees as open borders. Two corners of one triangle are never welded. The
+    /// levels still use the source vertices, each at its own position. Default: `1e-6`
+    /// (about ten float steps of a coordinate near the diagonal's size; the finest scans in
+    /// `../shared/testdata` space their vertices 1e-3 apart). `0.0` welds equal positions only.
+    ///
+    /// [`weld_positions_within`]: crate::mesh::weld_positions_within
+    pub weld_distance: f32,
+    /// Collapses past the walls of real assets. Ranked by cost with every other collapse, a
+    /// collapse may cross an attribute seam (each attribute vertex of the vertex that goes
+    /// then takes the one at the target that costs it the least attribute error, and pays
+    /// that error), move a non-manifold vertex, or an open border's vertex off its border,
+    /// remove every triangle of a non-manifold edge, and let a small part go (its last
+    /// collapse pays the length it moves, the size of what goes). Once nothing else is left,
+    /// the permissive tail also lets collapses pinch the surface into non-manifold edges.
+    /// Flat-shaded and split-vertex meshes, many-part props and non-manifold assets then
+    /// reduce to a few triangles instead of stopping where their seams, borders and parts do
+    /// (a level never goes below one triangle). Levels still use a subset of the source
+    /// vertices. Region builds keep their borders: a collapse of a vertex next to another
+    /// region's, or onto one, follows the strict rules. Ignored with
+    /// [`view_dependent`](Self::view_dependent) (its refinement needs manifold steps).
+    /// Default: `true`; `false` keeps the topology (closed stays closed, seams stay seams).
+    pub permissive: bool,
 }
 
 /// The simplification operator of a build ([`BuildOptions::operator`]).
@@ -165,6 +190,8 @@ with_setters!(BuildOptions {
     normal_weight: f64 => with_normal_weight,
     uv_weight: f64 => with_uv_weight,
     color_weight: f64 => with_color_weight,
+    weld_distance: f32 => with_weld_distance,
+    permissive: bool => with_permissive,
 });
 
 impl Default for BuildOptions {
@@ -183,6 +210,8 @@ impl Default for BuildOptions {
             normal_weight: 0.5,
             uv_weight: 0.25,
             color_weight: 0.25,
+            weld_distance: 1e-6,
+            permissive: true,
         }
     }
 }
@@ -218,8 +247,9 @@ const MAX_PAIRS: usize = 8;
 
 /// One performed collapse, before the final layout.
 struct Collapse {
-    removed: [u32; 2],
-    removed_count: u8,
+    /// Range of `removed` this collapse removed (two triangles, one on an open border, more
+    /// on a non-manifold edge in the permissive tail).
+    removed: std::ops::Range<usize>,
     /// Range of `rewrites` this collapse wrote.
     rewrites: std::ops::Range<usize>,
     /// The error table's entry: the largest collapse error so far.
@@ -260,6 +290,8 @@ struct Builder<'a> {
     /// [`choose`](Builder::choose) prices by their (scaled) quadric error alone).
     runner_up: Vec<f64>,
     collapses: Vec<Collapse>,
+    /// The triangles each collapse removed, in order.
+    removed: Vec<u32>,
     rewrites: Vec<Rewrite>,
     moves: Vec<(u32, u32, u32)>,
     live_triangles: usize,
@@ -299,6 +331,13 @@ struct Builder<'a> {
     attribute_stride: usize,
     /// Per attribute vertex, its attribute quadric (empty when no term is on).
     attribute_quadrics: AttributeQuadrics,
+    /// [`BuildOptions::permissive`], but for view-dependent builds: collapses may cross
+    /// attribute seams, move complex vertices and open borders off their border, remove
+    /// every triangle of a non-manifold edge, and erase small parts.
+    permissive: bool,
+    /// The permissive tail: every other collapse ran out, so collapses may also pinch the
+    /// surface (break the link condition).
+    pinch: bool,
 }
 
 /// Per position, its live triangles: every list in one arena, in position order (so the
@@ -440,11 +479,16 @@ impl<'a> Builder<'a> {
         pinned: Option<&[bool]>,
         anchors: Option<&[bool]>,
     ) -> Self {
-        let weld = weld_positions(&mesh.positions);
         let n = mesh.positions.len();
+        let bounds = mesh.bounds();
+        let diagonal = bounds.map_or(0.0, |(lo, hi)| f64::from((hi - lo).length()));
+        let weld = weld_positions_within(
+            &mesh.positions,
+            &mesh.indices,
+            (f64::from(options.weld_distance) * diagonal) as f32,
+        );
         // Relative to the bounds' centre: quadric terms grow with |p|², and a cost is their
         // difference, so coordinates far from the origin would round costs away.
-        let bounds = mesh.bounds();
         let centre = bounds.map_or(DVec3::ZERO, |(lo, hi)| {
             (lo.as_dvec3() + hi.as_dvec3()) * 0.5
         });
@@ -468,7 +512,6 @@ impl<'a> Builder<'a> {
                 adj.push(weld.remap[v as usize], t as u32);
             }
         }
-        let diagonal = bounds.map_or(0.0, |(lo, hi)| f64::from((hi - lo).length()));
         let inv_diagonal = if diagonal > 0.0 { 1.0 / diagonal } else { 1.0 };
         let mut builder = Self {
             mesh,
@@ -489,6 +532,7 @@ impl<'a> Builder<'a> {
             full_rank_due: vec![false; n],
             runner_up: vec![f64::INFINITY; n],
             collapses: Vec::new(),
+            removed: Vec::new(),
             rewrites: Vec::new(),
             moves: Vec::new(),
             inv_diagonal,
@@ -509,6 +553,8 @@ impl<'a> Builder<'a> {
             attributes: Vec::new(),
             attribute_stride: 0,
             attribute_quadrics: AttributeQuadrics::default(),
+            permissive: options.permissive && !options.view_dependent,
+            pinch: false,
         };
         (builder.attributes, builder.attribute_stride) = attribute_table(mesh, options);
         builder.classify(pinned);
@@ -964,6 +1010,7 @@ impl<'a> Builder<'a> {
     }
 
     fn check_collapse(&self, u: u32, w: u32, scratch: &mut Scratch) -> bool {
+        let loose = self.is_loose(u, w);
         let mut apexes = [u32::MAX; 2];
         let map = &mut scratch.map;
         map.clear();
@@ -984,7 +1031,9 @@ impl<'a> Builder<'a> {
             edge_tris += 1;
             let (a, b) = (tri[ku], tri[kw]);
             match map.iter().find(|m| m.0 == a) {
-                Some(&(_, existing)) if existing != b => return false,
+                // The permissive tail keeps the first (a non-manifold edge's triangles may
+                // pair an attribute vertex with several).
+                Some(&(_, existing)) if existing != b && !loose => return false,
                 Some(_) => {}
                 None => map.push((a, b)),
             }
@@ -992,14 +1041,18 @@ impl<'a> Builder<'a> {
         if edge_tris == 0 {
             return self.check_pair(u, w, scratch);
         }
-        if edge_tris > 2 {
+        if edge_tris > 2 && !loose {
+            return false;
+        }
+        // The permissive tail never takes the last triangles: a mesh keeps at least one.
+        if loose && self.live_triangles <= edge_tris {
             return false;
         }
         // Never erase a whole component (w must keep at least one triangle)...
         let last = self.adj[u as usize].len() + self.adj[w as usize].len() == 2 * edge_tris;
         // ...unless the topology compromise lets a part vanish: u's only two triangles are a
         // tetrahedron folded flat, the same three positions facing each other.
-        let flat = !self.pairs.is_empty()
+        let flat = (!self.pairs.is_empty() || loose)
             && self.adj[u as usize].len() == 2
             && edge_tris == 2
             && apexes[0] == apexes[1];
@@ -1007,30 +1060,34 @@ impl<'a> Builder<'a> {
             return true;
         }
         if last {
-            return false;
+            // Permissive: a small part may go, the edge's triangles were all it had.
+            return loose;
         }
         // A vertex on an attribute seam (or at the end of one) moves only along the seam;
         // anything else would drag one side's attributes across to the other.
-        if self.has_seams && self.touches_seam(u, scratch) && !self.is_seam_edge(u, w) {
+        if !loose && self.has_seams && self.touches_seam(u, scratch) && !self.is_seam_edge(u, w) {
             return false;
         }
         // Link condition: the only common neighbours of u and w are the apexes of the edge's
-        // triangles. Anything else would pinch the surface into a non-manifold edge.
+        // triangles. Anything else would pinch the surface into a non-manifold edge (which
+        // the permissive tail allows).
         let stamp = scratch.next_stamp();
-        for &t in &self.adj[w as usize] {
-            for &v in &self.tris[t as usize] {
-                scratch.mark[self.pos[v as usize] as usize] = stamp;
+        if !(loose && self.pinch) {
+            for &t in &self.adj[w as usize] {
+                for &v in &self.tris[t as usize] {
+                    scratch.mark[self.pos[v as usize] as usize] = stamp;
+                }
             }
-        }
-        for &t in &self.adj[u as usize] {
-            for &v in &self.tris[t as usize] {
-                let x = self.pos[v as usize];
-                if x != u && x != w && scratch.mark[x as usize] == stamp && !apexes.contains(&x) {
-                    return false;
+            for &t in &self.adj[u as usize] {
+                for &v in &self.tris[t as usize] {
+                    let x = self.pos[v as usize];
+                    if x != u && x != w && scratch.mark[x as usize] == stamp && !apexes.contains(&x)
+                    {
+                        return false;
+                    }
                 }
             }
         }
-        let map = &scratch.map;
         let pu = self.points[u as usize];
         let pw = self.points[w as usize];
         for &t in &self.adj[u as usize] {
@@ -1039,9 +1096,31 @@ impl<'a> Builder<'a> {
             if a == w || b == w {
                 continue;
             }
-            // Every attribute vertex at u needs a partner at w, or a seam would tear.
-            if !map.iter().any(|m| m.0 == tri[k]) {
-                return false;
+            // Every attribute vertex at u needs a partner at w, or a seam would tear; the
+            // permissive tail gives it the one at w that costs the least attribute error.
+            if !scratch.map.iter().any(|m| m.0 == tri[k]) {
+                if !loose {
+                    return false;
+                }
+                let partner = self.partner(tri[k], w);
+                scratch.map.push((tri[k], partner));
+            }
+            if loose {
+                // A triangle that lands on one already there (a part folding flat on its way
+                // out) turns over by design; any other must not.
+                let lands = self.adj[w as usize].iter().any(|&s| {
+                    let o = self.tris[s as usize];
+                    let has = |p: u32| o.iter().any(|&v| self.pos[v as usize] == p);
+                    has(a) && has(b)
+                });
+                let (pa, pb) = (self.points[a as usize], self.points[b as usize]);
+                if !lands
+                    && (self.turns_by(pu, pw, pa, pb, self.options.min_normal_cos.min(0.0))
+                        || self.faces_away(t, pw, pa, pb))
+                {
+                    return false;
+                }
+                continue;
             }
             // No triangle (w, a, b) may exist already (the tetrahedron case). After the link
             // condition, only a triangle spanning both apexes can.
@@ -1069,6 +1148,110 @@ impl<'a> Builder<'a> {
             }
         }
         true
+    }
+
+    /// Whether the permissive tail's rules apply to collapsing `u` onto `w`: the tail has
+    /// begun, and neither is next to another region's vertex (region borders keep the strict
+    /// rules, which keep them crack-free).
+    #[inline]
+    fn is_loose(&self, u: u32, w: u32) -> bool {
+        self.permissive && self.off_fronts(u, w)
+    }
+
+    /// Neither `u` nor `w` is next to another region's vertex.
+    #[inline]
+    fn off_fronts(&self, u: u32, w: u32) -> bool {
+        self.anchor.is_empty() || !(self.touches_anchor(u, None) || self.touches_anchor(w, None))
+    }
+
+    /// The attribute vertex at position `w` that attribute vertex `a` (at the vertex that
+    /// goes) costs the least to become, by `a`'s attribute quadric at `w`; without attribute
+    /// terms, the smallest.
+    fn partner(&self, a: u32, w: u32) -> u32 {
+        let s = self.attribute_stride;
+        let pw = self.points[w as usize];
+        let mut best = (f64::INFINITY, u32::MAX);
+        for &t in &self.adj[w as usize] {
+            for &b in &self.tris[t as usize] {
+                if self.pos[b as usize] != w {
+                    continue;
+                }
+                let cost = if s == 0 {
+                    0.0
+                } else {
+                    let values = &self.attributes[b as usize * s..(b as usize + 1) * s];
+                    self.attribute_quadrics.error(a, pw, values)
+                };
+                if (cost, b) < best {
+                    best = (cost, b);
+                }
+            }
+        }
+        best.1
+    }
+
+    /// The attribute error of the attribute vertices at `u` that no triangle on the edge
+    /// `u`-`w` pairs (only the permissive tail moves those, onto their
+    /// [`partner`](Self::partner)s); `wedges` as [`attribute_error`](Self::attribute_error)
+    /// takes them.
+    fn unpaired_attribute_error(&self, u: u32, w: u32, wedges: &[(u32, u32, u32)]) -> f64 {
+        let s = self.attribute_stride;
+        if s == 0 || !self.is_loose(u, w) {
+            return 0.0;
+        }
+        let pw = self.points[w as usize];
+        let mut seen: Vec<u32> = wedges
+            .iter()
+            .filter(|&&(p, ..)| p == w)
+            .map(|&(_, a, _)| a)
+            .collect();
+        let mut error = 0.0;
+        for &(_, a, _) in wedges {
+            if seen.contains(&a) {
+                continue;
+            }
+            seen.push(a);
+            let b = self.partner(a, w);
+            if b != u32::MAX {
+                let values = &self.attributes[b as usize * s..(b as usize + 1) * s];
+                error += self.attribute_quadrics.error(a, pw, values);
+            }
+        }
+        error
+    }
+
+    /// The terms of collapsing `u` onto `w` beyond its quadric and local errors: the paired
+    /// attribute vertices' ([`attribute_error`](Self::attribute_error)), the unpaired ones'
+    /// across seams, and what a part that goes leaves uncovered
+    /// ([`erase_error`](Self::erase_error)).
+    #[inline]
+    fn extra_cost(&self, u: u32, w: u32, wedges: &[(u32, u32, u32)]) -> f64 {
+        self.attribute_error(w, wedges)
+            + self.unpaired_attribute_error(u, w, wedges)
+            + self.erase_error(u, w)
+    }
+
+    /// With [`BuildOptions::permissive`], a collapse that leaves neither `u` nor `w` a
+    /// triangle (every triangle around either lies on the edge `u`-`w`) takes a part away: a
+    /// sheet's last triangle, or a part folded flat. Its planes all hold `w`, so its quadric
+    /// costs nothing; it costs the squared length of the edge instead, the size of what goes.
+    /// 0 for any other collapse (an ear on an open border keeps `w`'s other triangles).
+    fn erase_error(&self, u: u32, w: u32) -> f64 {
+        if !self.permissive {
+            return 0.0;
+        }
+        let on_edge = |t: &u32, x: u32| {
+            self.tris[*t as usize]
+                .iter()
+                .any(|&v| self.pos[v as usize] == x)
+        };
+        let erases = self.adj[u as usize].iter().all(|t| on_edge(t, w))
+            && self.adj[w as usize].iter().all(|t| on_edge(t, u));
+        if erases {
+            self.points[u as usize].distance_squared(self.points[w as usize])
+        } else {
+            0.0
+        }
     }
 
     /// The rules for collapsing `u` onto `w` of another part, with no edge between them (the
@@ -1127,11 +1310,17 @@ impl<'a> Builder<'a> {
     /// than [`BuildOptions::min_normal_cos`] allows, or leaves it without area.
     #[inline]
     fn turns(&self, pu: DVec3, pw: DVec3, pa: DVec3, pb: DVec3) -> bool {
+        self.turns_by(pu, pw, pa, pb, self.options.min_normal_cos)
+    }
+
+    /// [`turns`](Self::turns) with the cosine bound `min_cos`.
+    #[inline]
+    fn turns_by(&self, pu: DVec3, pw: DVec3, pa: DVec3, pb: DVec3, min_cos: f64) -> bool {
         let before = (pa - pu).cross(pb - pu);
         let after = (pa - pw).cross(pb - pw);
         let dot = before.dot(after);
         let lengths = (before.length_squared() * after.length_squared()).sqrt();
-        dot <= self.options.min_normal_cos * lengths || lengths == 0.0
+        dot <= min_cos * lengths || lengths == 0.0
     }
 
     /// True when triangle `t`, its corners moved to `pw`, `pa` and `pb` (in its winding),
@@ -1198,7 +1387,12 @@ impl<'a> Builder<'a> {
         // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
         // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
         // Steps past 4,095 corners only make the records wide.
-        if !matches!(self.kind[u as usize], Kind::Manifold | Kind::Border)
+        let movable = match self.kind[u as usize] {
+            Kind::Manifold | Kind::Border => true,
+            Kind::Complex => self.permissive,
+            Kind::Pinned => false,
+        };
+        if !movable
             || self.adj[u as usize].is_empty()
             || 3 * self.adj[u as usize].len() > usize::from(u16::MAX)
         {
@@ -1245,7 +1439,7 @@ impl<'a> Builder<'a> {
             if front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None) {
                 continue;
             }
-            if !seams.is_empty() && seams.binary_search(&w).is_err() {
+            if !seams.is_empty() && seams.binary_search(&w).is_err() && !self.is_loose(u, w) {
                 continue;
             }
             if let Some(e) = self.quadric_cost(u, w) {
@@ -1277,7 +1471,7 @@ impl<'a> Builder<'a> {
             candidates[i].0 = if !validate && self.level(bound) > best {
                 bound
             } else {
-                let q = q + self.attribute_error(w, &wedges);
+                let q = q + self.extra_cost(u, w, &wedges);
                 let bound = settle(q);
                 if !validate && self.local_weight > 0.0 && self.level(bound) > best {
                     bound
@@ -1320,7 +1514,9 @@ impl<'a> Builder<'a> {
     #[inline]
     fn quadric_cost(&self, u: u32, w: u32) -> Option<f64> {
         if self.kind[w as usize] == Kind::Pinned
-            || (self.kind[u as usize] == Kind::Border && !self.is_border_edge(u, w))
+            || (self.kind[u as usize] == Kind::Border
+                && !self.is_border_edge(u, w)
+                && !self.is_loose(u, w))
         {
             return None;
         }
@@ -1338,7 +1534,8 @@ impl<'a> Builder<'a> {
         if self.weight_exponent == 0.0 && self.attribute_stride == 0 {
             return cost;
         }
-        let quadric = self.quadrics[u as usize].error(self.points[w as usize]);
+        let quadric =
+            self.quadrics[u as usize].error(self.points[w as usize]) + self.erase_error(u, w);
         if self.local_weight == 0.0 {
             return settle(quadric);
         }
@@ -1467,8 +1664,7 @@ impl<'a> Builder<'a> {
     /// Phase 5: removes the edge's triangles, moves u's corners to w, records both.
     fn perform(&mut self, u: u32, w: u32, error: f64) {
         let rewrite_start = self.rewrites.len();
-        let mut removed = [u32::MAX; 2];
-        let mut removed_count = 0u8;
+        let removed_start = self.removed.len();
         let map = std::mem::take(&mut self.scratch.map);
         let mut adj_u = std::mem::take(&mut self.adj_u);
         self.adj.take(u, &mut adj_u);
@@ -1481,8 +1677,7 @@ impl<'a> Builder<'a> {
             if on_edge {
                 self.alive[t as usize] = false;
                 self.live_triangles -= 1;
-                removed[removed_count as usize] = t;
-                removed_count += 1;
+                self.removed.push(t);
                 for &v in &tri {
                     let p = self.pos[v as usize];
                     if p != u {
@@ -1504,7 +1699,9 @@ impl<'a> Builder<'a> {
                 self.adj.push(w, t);
             }
         }
-        self.pin_survivors(&removed[..removed_count as usize], u, rewrite_start);
+        let removed = std::mem::take(&mut self.removed);
+        self.pin_survivors(&removed[removed_start..], u, rewrite_start);
+        self.removed = removed;
         let step = self.collapses.len() as u32;
         self.moves
             .extend(map.iter().map(|&(old, new)| (step, old, new)));
@@ -1521,8 +1718,7 @@ impl<'a> Builder<'a> {
         let error = (error.sqrt() * self.inv_diagonal) as f32;
         let previous = self.collapses.last().map_or(0.0, |c| c.error);
         self.collapses.push(Collapse {
-            removed,
-            removed_count,
+            removed: removed_start..self.removed.len(),
             rewrites: rewrite_start..self.rewrites.len(),
             // The table is monotone: a level's error is the largest collapse error so far.
             error: error.max(previous),
@@ -1549,9 +1745,11 @@ impl<'a> Builder<'a> {
         for &t in removed {
             for &v in &self.tris[t as usize] {
                 let p = self.pos[v as usize];
-                // Pinned and complex vertices never move: nothing to keep them from.
+                // Pinned vertices never move, nor do complex ones before the permissive tail:
+                // nothing to keep them from.
                 let held = p == u
-                    || !matches!(self.kind[p as usize], Kind::Manifold | Kind::Border)
+                    || self.kind[p as usize] == Kind::Pinned
+                    || (self.kind[p as usize] == Kind::Complex && !self.permissive)
                     || loose.contains(&p)
                     || self.rewrites[rewrite_start..].iter().any(|&(s, ..)| {
                         self.tris[s as usize]
@@ -1618,6 +1816,12 @@ impl<'a> Builder<'a> {
     /// local error, which attribute vertex takes each of its places and which of its edges
     /// are seams).
     fn rerank(&mut self, x: u32, u: u32, w: u32) {
+        if self.permissive {
+            // A permissive collapse's partners, kinds and erasures depend on the target's
+            // triangles, which the collapse changed: rank in full.
+            self.rank(x, false, None);
+            return;
+        }
         let xi = x as usize;
         let moved = self.moved_ring.contains(&x);
         let target = self.target[xi];
@@ -1689,7 +1893,7 @@ impl<'a> Builder<'a> {
                 .filter(|c| c.1 != chosen)
                 .map(|&(_, y)| {
                     let q = self.quadric_cost(x, y).expect("a candidate is allowed");
-                    let q = q + self.attribute_error(y, &wedges);
+                    let q = q + self.extra_cost(x, y, &wedges);
                     self.level(self.cost(x, y, q, &fan))
                 })
                 .fold(f64::INFINITY, f64::min);
@@ -1715,7 +1919,21 @@ impl<'a> Builder<'a> {
         }
         let total = self.tris.len();
         let mut ring = Vec::new();
-        while let Some((bits, u)) = self.heap.pop() {
+        loop {
+            let Some((bits, u)) = self.heap.pop() else {
+                // Every collapse that keeps the surface from pinching ran out: go on in the
+                // permissive tail, once.
+                if self.pinch || !self.permissive {
+                    break;
+                }
+                self.pinch = true;
+                for u in 0..self.adj.len() as u32 {
+                    if self.pos[u as usize] == u && !self.adj[u as usize].is_empty() {
+                        self.rank(u, false, None);
+                    }
+                }
+                continue;
+            };
             if self.live_triangles <= self.options.min_triangles {
                 break;
             }
@@ -1732,6 +1950,7 @@ impl<'a> Builder<'a> {
             self.perform(u, w, error);
             self.rerank_after(u, w, &mut ring);
             if self.options.operator == CollapseOperator::Triangle
+                && !self.pinch
                 && self.live_triangles > self.options.min_triangles
                 && let Some((x, error)) = self.apex(w)
                 && (error.sqrt() * self.inv_diagonal) as f32 <= self.options.max_error
@@ -1773,8 +1992,9 @@ impl<'a> Builder<'a> {
     fn apex(&mut self, w: u32) -> Option<(u32, f64)> {
         let last = self.collapses.last()?;
         let mut apexes = [u32::MAX; 2];
-        for (k, &t) in last.removed[..last.removed_count as usize]
+        for (k, &t) in self.removed[last.removed.clone()]
             .iter()
+            .take(2)
             .enumerate()
         {
             apexes[k] = self.tris[t as usize]
@@ -1810,7 +2030,7 @@ impl<'a> Builder<'a> {
             }
             let mut wedges = Vec::new();
             self.wedges_into(x, &mut wedges);
-            let q = q + self.attribute_error(w, &wedges);
+            let q = q + self.extra_cost(x, w, &wedges);
             eligible.push((self.cost(x, w, q, &fan), x));
         }
         self.scratch.fan = fan;
@@ -1842,7 +2062,7 @@ impl<'a> Builder<'a> {
         }
         let base_triangles = order.len();
         for c in self.collapses.iter().rev() {
-            for &t in &c.removed[..c.removed_count as usize] {
+            for &t in &self.removed[c.removed.clone()] {
                 if (t as usize) < owned {
                     order.push(t);
                 }
@@ -1875,12 +2095,12 @@ impl<'a> Builder<'a> {
                     }
                 };
                 let corner = 3 * slot[t as usize] + k as u32;
-                corners.push(corner << 1 | pair as u32);
+                corners.push((corner, pair as u32));
             }
             steps.push((
                 corners.len() - first_corner,
                 pairs.len() - first_pair,
-                c.removed[..c.removed_count as usize]
+                self.removed[c.removed.clone()]
                     .iter()
                     .filter(|&&t| (t as usize) < owned)
                     .count(),

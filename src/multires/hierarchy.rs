@@ -186,8 +186,8 @@ impl ViewData {
         for (i, &(nc, np, removed)) in records.steps.iter().enumerate() {
             touched.clear();
             touched.extend((count - removed..count).map(|s| s as u32));
-            for &c in &records.corners[corner..corner + nc] {
-                touched.push((c >> 1) / 3);
+            for &(c, _) in &records.corners[corner..corner + nc] {
+                touched.push(c / 3);
             }
             touched.sort_unstable();
             touched.dedup();
@@ -209,11 +209,11 @@ impl ViewData {
             deps.dedup();
             // The collapse itself: changed triangles take their new corners.
             let pairs = &records.pairs[pair..pair + np];
-            for &c in &records.corners[corner..corner + nc] {
-                tri[(c >> 1) as usize] = pairs[(c & 1) as usize][1];
+            for &(c, p) in &records.corners[corner..corner + nc] {
+                tri[c as usize] = pairs[p as usize][1];
             }
-            for &c in &records.corners[corner..corner + nc] {
-                let s = ((c >> 1) / 3) as usize;
+            for &(c, _) in &records.corners[corner..corner + nc] {
+                let s = (c / 3) as usize;
                 normals.extend(normal(
                     tri[3 * s..3 * s + 3]
                         .iter()

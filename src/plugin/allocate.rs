@@ -98,11 +98,17 @@ pub(crate) fn allocate(
         .sum();
     frame.serial += 1;
     let mut items: Vec<ModelItem> = models.iter_mut().collect();
+    let min_pixels = budget.min_pixels;
+    let min_area = if full_detail.0 || !(min_pixels.is_finite() && min_pixels > 0.0) {
+        0.0
+    } else {
+        min_pixels * min_pixels
+    };
     let view_dependent = fill_inputs(
         &mut items,
         &mut scratch.inputs,
         &cameras,
-        full_detail.0,
+        (full_detail.0, min_area),
         frame.serial,
     );
     let fixed_cost = u32::try_from(fixed_cost + view_dependent).unwrap_or(u32::MAX);
@@ -157,11 +163,13 @@ pub(crate) fn allocate(
 /// and notes in its slot where the run starts (`SelectLod` reads its counts from the same
 /// run, in parallel). Returns the triangles of the view-dependent models without a budget:
 /// fixed cost.
+/// `(full_detail, min_area)`: whether [`FullDetail`] is on, and the projected area in pixels²
+/// below which a model shows nothing (`0`: none).
 fn fill_inputs(
     items: &mut [ModelItem],
     inputs: &mut Vec<RegionInput>,
     cameras: &FrameCameras,
-    full_detail: bool,
+    (full_detail, min_area): (bool, f32),
     serial: u64,
 ) -> u64 {
     let lens: Vec<usize> = items.iter().map(input_len).collect();
@@ -182,6 +190,7 @@ fn fill_inputs(
         for ((instance, slot, transform, priority, view_dependent, layers), first, out) in chunk {
             slot.allocation = serial;
             slot.first = *first;
+            slot.too_small = false;
             let c = priority_of(*priority);
             match view_dependent {
                 Some(state) if state.is_budgeted() => {
@@ -196,7 +205,14 @@ fn fill_inputs(
                         priority: c,
                         layers: *layers,
                     };
-                    model.fill(cameras, full_detail, &mut scratch, out);
+                    let area = model.fill(cameras, full_detail, &mut scratch, out);
+                    if area < min_area {
+                        // Too small to matter: nothing to draw, nothing to count.
+                        slot.too_small = true;
+                        for input in out.iter_mut() {
+                            *input = RegionInput::from_area(0.0, 0.0, 0, 0, input.current);
+                        }
+                    }
                 }
             }
         }
@@ -346,13 +362,14 @@ impl ModelInputs<'_> {
     /// model's priority. Unskinned
     /// boxes stay in the model's space and the cameras move into it (four boxes at a time,
     /// see [`ProjectedAreaCamera::projected_areas`]); skinned ones are already in the world.
+    /// Returns the sum of the regions' areas (0 out of view or at full detail).
     fn fill(
         &self,
         frame: &FrameCameras,
         full_detail: bool,
         scratch: &mut AreaScratch,
         out: &mut [RegionInput],
-    ) {
+    ) -> f32 {
         let AreaScratch {
             local,
             areas,
@@ -397,6 +414,7 @@ impl ModelInputs<'_> {
                 }
             }
         }
+        let mut total = 0.0;
         for ((r, region), input) in instance.regions.regions().iter().enumerate().zip(out) {
             let area = if full_detail || culled {
                 0.0
@@ -409,11 +427,13 @@ impl ModelInputs<'_> {
                 max_area(cameras, &obb)
             };
             let area = if area.is_finite() { area } else { 0.0 };
+            total += area;
             let shown = instance.caches.triangle_count(r) as u32;
             // Geomorphs or not, the allocation is the view's (`Geomorphs::apply_allocation`
             // holds the budget while regions morph).
             let (min, max) = (region.min_triangles() as u32, region.max_triangles() as u32);
             *input = RegionInput::from_area(area, self.priority, min, max, shown);
         }
+        total
     }
 }

@@ -33,6 +33,18 @@ pub struct PolygonBudget {
     ///
     /// Default: [`RegionSplit::ScreenError`].
     pub split: RegionSplit,
+    /// The smallest a model may look and still be drawn, in pixels: a model whose regions'
+    /// projected areas add up to less than `min_pixels²` shows nothing (its region entities
+    /// are hidden) and counts nothing against the budget, as a LOD group's last "culled"
+    /// level does. So do models out of every camera's view, which Bevy does not draw either.
+    /// A model that shows nothing keeps its last level, and takes its allocation again the
+    /// frame it is large enough. Off with [`FullDetail`]`(true)` and for
+    /// [`ViewDependent`](super::ViewDependent) models. Negative or non-finite values count
+    /// as `0`.
+    ///
+    /// Default: `0.0` (off: every model shows at least its coarsest level, a triangle or a
+    /// few for most meshes; see [`BuildOptions::permissive`](crate::multires::BuildOptions)).
+    pub min_pixels: f32,
 }
 
 /// How a model's part of the budget is shared among its regions ([`PolygonBudget::split`]).
@@ -82,6 +94,7 @@ impl Default for PolygonBudget {
             hysteresis: 0,
             frame_target: None,
             split: RegionSplit::default(),
+            min_pixels: 0.0,
         }
     }
 }

@@ -178,6 +178,13 @@ pub(super) struct AllocationSlot {
     /// The tolerance its last split by error found (`NaN`: none yet), where the next one
     /// starts ([`ErrorCurves::split_from`]).
     pub(super) tolerance: f32,
+    /// That allocation found the model smaller than [`PolygonBudget::min_pixels`] (or out
+    /// of view under it): it shows nothing.
+    ///
+    /// [`PolygonBudget::min_pixels`]: super::PolygonBudget::min_pixels
+    pub(super) too_small: bool,
+    /// Whether its region entities are hidden for being too small now.
+    pub(super) hidden: bool,
 }
 
 impl Default for AllocationSlot {
@@ -186,6 +193,8 @@ impl Default for AllocationSlot {
             allocation: 0,
             first: 0,
             tolerance: f32::NAN,
+            too_small: false,
+            hidden: false,
         }
     }
 }

@@ -304,9 +304,7 @@ impl Plugin for AslodPlugin {
                 )
                     .chain()
                     .in_set(AslodSystems::Allocate),
-                (select::sync_geomorphs, select::select_lod)
-                    .chain()
-                    .in_set(AslodSystems::SelectLod),
+                select::systems().in_set(AslodSystems::SelectLod),
                 skin::deform.in_set(AslodSystems::Deform),
                 upload::upload.in_set(AslodSystems::Upload),
             ),

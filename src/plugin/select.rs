@@ -14,15 +14,18 @@
 //!    vertices `Upload` writes. Skinned models write theirs in `Deform`.
 
 use super::allocate::FrameAllocation;
-use super::components::{AslodStats, Geomorph};
+use super::components::{AslodStats, Geomorph, LodRegion};
 use super::geomorph::{Clock, GpuGeomorph, MorphChange, MorphOutput, RegionGeomorphs, RegionGrant};
 use super::instance::{AllocationSlot, MultiresInstance, RegionStaging, StagedIndices};
 use super::shared::SharedState;
 use super::skin::SkinState;
 use super::tasks::par_chunks;
 use super::view_dependent::ViewDependentState;
+use bevy::camera::visibility::VisibilitySystems;
 use bevy::ecs::query::QueryItem;
+use bevy::ecs::schedule::ScheduleConfigs;
 use bevy::ecs::system::NonSendMarker;
+use bevy::ecs::system::ScheduleSystem;
 use bevy::mesh::Indices;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
@@ -203,6 +206,10 @@ fn take_allocation(model: &mut ModelItem, allocation: &FrameAllocation, clock: C
             deferred,
         };
     }
+    // Too small to draw: its regions are hidden and keep their levels.
+    if slot.too_small && allocation.includes(slot) {
+        return Sums::default();
+    }
     let run = allocation.counts_of(slot, instance.targets.len());
     // The same targets as last frame on a settled model: nothing moves (most models out of
     // view, whose regions all sit at their minimum, and far ones).
@@ -330,6 +337,44 @@ fn apply_grants(model: &mut ModelItem, clock: Clock) -> u64 {
         shown,
     );
     shown
+}
+
+/// `SelectLod`'s systems in order: [`sync_geomorphs`], [`select_lod`], and
+/// [`hide_too_small`] before Bevy propagates visibility (so a model that shrank below
+/// `min_pixels` is not drawn in this frame).
+pub(crate) fn systems() -> ScheduleConfigs<ScheduleSystem> {
+    (
+        sync_geomorphs,
+        select_lod,
+        hide_too_small.before(VisibilitySystems::VisibilityPropagate),
+    )
+        .chain()
+}
+
+/// Hides the region entities of the models too small to draw
+/// ([`PolygonBudget::min_pixels`](super::PolygonBudget::min_pixels)) and shows them again
+/// once they are not; view-dependent models, whose regions hide behind their level, are left
+/// alone.
+pub(crate) fn hide_too_small(
+    mut models: Query<(&MultiresInstance, &mut AllocationSlot), Without<ViewDependentState>>,
+    mut regions: Query<&mut Visibility, With<LodRegion>>,
+) {
+    for (instance, mut slot) in &mut models {
+        if slot.too_small == slot.hidden {
+            continue;
+        }
+        slot.hidden = slot.too_small;
+        let visibility = if slot.hidden {
+            Visibility::Hidden
+        } else {
+            Visibility::Inherited
+        };
+        for &region in &instance.region_entities {
+            if let Ok(mut v) = regions.get_mut(region) {
+                v.set_if_neq(visibility);
+            }
+        }
+    }
 }
 
 /// After a model's caches took this frame's levels (`shown` triangles): whether it is

@@ -338,14 +338,13 @@ impl<I: CacheIndex> VariableCache<I> {
         step: usize,
         side: usize,
     ) {
-        let (nc, np, _) = records.steps[step].unpack();
+        let (nc, np, _) = records.step(step);
         let corner = mesh.graph.corner_start[step] as usize;
         let pair = mesh.graph.pair_start[step] as usize;
         let pairs = &records.pairs[pair..pair + np];
-        for c in &records.corners[corner..corner + nc] {
-            let c = c.get();
-            let index = (c >> 1) as usize;
-            let v = I::from_u32(pairs[(c & 1) as usize][side].into());
+        for &c in &records.corners[corner..corner + nc] {
+            let index = records.corner_slot(c);
+            let v = I::from_u32(pairs[records.corner_pair(c)][side].into());
             self.slots[index] = v;
             let at = self.out_pos[index / 3];
             debug_assert_ne!(at, NONE, "a collapse changes only drawn triangles");

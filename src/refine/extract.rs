@@ -100,23 +100,22 @@ where
     let mut count = slots.len() / 3;
     let (mut corner, mut pair) = (0, 0);
     let (mut evaluated, mut done) = (0, 0);
-    for (step, header) in records.steps.iter().enumerate() {
-        let (nc, np, removed) = header.unpack();
+    for (step, (nc, np, removed)) in records.headers().enumerate() {
         let first = count - removed;
         let corners = &records.corners[corner..corner + nc];
         let blocked = (first..count).any(|s| frozen.get(s))
             || corners
                 .iter()
-                .any(|c| frozen.get((c.get() >> 1) as usize / 3));
+                .any(|&c| frozen.get(records.corner_slot(c) / 3));
         let perform = !blocked && {
             evaluated += 1;
             criterion.coarsen(&nodes[step], view)
         };
         if perform {
             let pairs = &records.pairs[pair..pair + np];
-            for c in corners {
-                let c = c.get();
-                slots[(c >> 1) as usize] = I::from_u32(pairs[(c & 1) as usize][NEW].into());
+            for &c in corners {
+                slots[records.corner_slot(c)] =
+                    I::from_u32(pairs[records.corner_pair(c)][NEW].into());
             }
             if let Some(p) = performed.as_deref_mut() {
                 p.set(step);
@@ -126,8 +125,8 @@ where
             for s in first..count {
                 frozen.set(s);
             }
-            for c in corners {
-                frozen.set((c.get() >> 1) as usize / 3);
+            for &c in corners {
+                frozen.set(records.corner_slot(c) / 3);
             }
         }
         count = first;

@@ -249,8 +249,7 @@ impl Graph {
             children: Vec::new(),
         };
         let mut touched = Vec::new();
-        for (step, header) in records.steps.iter().enumerate() {
-            let (nc, np, removed) = header.unpack();
+        for (step, (nc, np, removed)) in records.headers().enumerate() {
             let first = count - removed;
             graph.first_removed.push(first as u32);
             graph.corner_start.push(corner as u32);
@@ -261,7 +260,7 @@ impl Graph {
             touched.extend(
                 records.corners[corner..corner + nc]
                     .iter()
-                    .map(|c| (c.get() >> 1) / 3),
+                    .map(|&c| (records.corner_slot(c) / 3) as u32),
             );
             let from = graph.deps.len();
             for &s in &touched {

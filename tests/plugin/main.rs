@@ -11,6 +11,7 @@ mod baked;
 mod example_run;
 mod geomorph;
 mod models;
+mod prop_field;
 mod shared;
 mod skinned;
 mod soak;

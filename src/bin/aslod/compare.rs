@@ -81,7 +81,19 @@ fn time_ms<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     (median(times), last.expect("runs >= 1"))
 }
 
+/// meshoptimizer's `simplify` of `mesh` to `target_triangles` (positions only, seams kept as
+/// its attribute-free default does).
 fn meshopt_simplify(mesh: &IndexedMesh, target_triangles: usize) -> Vec<u32> {
+    meshopt_simplify_with(mesh, target_triangles, meshopt::SimplifyOptions::None)
+}
+
+/// meshoptimizer's `simplify` with `options` (`Permissive`: its way past seams and
+/// non-manifold walls, the peer where plain `simplify` is stuck).
+fn meshopt_simplify_with(
+    mesh: &IndexedMesh,
+    target_triangles: usize,
+    options: meshopt::SimplifyOptions,
+) -> Vec<u32> {
     let bytes: Vec<u8> = mesh
         .positions
         .iter()
@@ -95,7 +107,7 @@ fn meshopt_simplify(mesh: &IndexedMesh, target_triangles: usize) -> Vec<u32> {
         &adapter,
         3 * target_triangles,
         f32::MAX,
-        meshopt::SimplifyOptions::None,
+        options,
         None,
     )
 }
@@ -252,6 +264,9 @@ struct Row {
     /// [`pinched_edges`] of our level and of meshoptimizer's result.
     ours_pinched: usize,
     meshopt_pinched: usize,
+    /// meshoptimizer's `simplify` with `Permissive`: its triangles and distance.
+    permissive_triangles: usize,
+    permissive: Distance,
 }
 
 pub(crate) fn compare(args: &CompareArgs) -> CliResult {
@@ -287,6 +302,7 @@ struct Report {
     rotated: Vec<RotatedRow>,
     /// Per ratio with `--regions`.
     partitioned: Vec<Partitioned>,
+    coarsest: Coarsest,
 }
 
 /// A ratio with `--regions`: the assembled triangles, their distance to the mesh, and the
@@ -337,7 +353,14 @@ fn measure(args: &CompareArgs) -> Result<Report, Box<dyn std::error::Error>> {
         let target = target_of(ratio);
         let (ours_triangles, ours, simplified, meshopt) =
             distances_at(&mesh, &pm, &mut cache, target);
+        let permissive = meshopt_simplify_with(&mesh, target, meshopt::SimplifyOptions::Permissive);
         rows.push(Row {
+            permissive_triangles: permissive.len() / 3,
+            permissive: mesh_distance(
+                MeshRef::new(&mesh.positions, &mesh.indices),
+                MeshRef::new(&mesh.positions, &permissive),
+                &DistanceOptions::default(),
+            ),
             ratio,
             target,
             ours_triangles,
@@ -348,6 +371,11 @@ fn measure(args: &CompareArgs) -> Result<Report, Box<dyn std::error::Error>> {
             meshopt_pinched: pinched_edges(&mesh.positions, &simplified),
         });
     }
+    let coarsest = Coarsest {
+        ours: pm.min_triangles(),
+        meshopt: meshopt_simplify(&mesh, 0).len() / 3,
+        permissive: meshopt_simplify_with(&mesh, 0, meshopt::SimplifyOptions::Permissive).len() / 3,
+    };
     let source_bytes = indexed_mesh_bytes(&mesh);
     let ours_bytes = pm.memory_bytes();
     let rotated = compare_rotated(&mesh, ratios, args.rotations, &build_options)?;
@@ -371,7 +399,17 @@ fn measure(args: &CompareArgs) -> Result<Report, Box<dyn std::error::Error>> {
         rows,
         rotated,
         partitioned,
+        coarsest,
     })
+}
+
+/// The coarsest level each side reaches: our base mesh, and meshoptimizer's `simplify` to no
+/// triangles, plain and `Permissive`.
+#[derive(Clone, Copy)]
+struct Coarsest {
+    ours: usize,
+    meshopt: usize,
+    permissive: usize,
 }
 
 /// The cost of partitioning: `mesh` cut by `spec`, every region at each row's ratio (or, `by_error`,
@@ -435,12 +473,18 @@ fn print_json(args: &CompareArgs, report: &Report) -> CliResult {
         ref rows,
         ref rotated,
         ref partitioned,
+        coarsest,
         ..
     } = *report;
     let value = serde_json::json!({
         "input": input.display().to_string(),
         "triangles": t,
         "vertices": vertices,
+        "coarsest": {
+            "ours": coarsest.ours,
+            "meshopt": coarsest.meshopt,
+            "meshopt_permissive": coarsest.permissive,
+        },
         "runs": runs,
         "build_ms": {
             "ours_full_sequence": ours_ms,
@@ -484,6 +528,7 @@ fn print_json(args: &CompareArgs, report: &Report) -> CliResult {
             "target": r.target,
             "ours": {"triangles": r.ours_triangles, "hausdorff": r.ours.hausdorff, "rms": r.ours.rms, "pinched_edges": r.ours_pinched},
             "meshopt": {"triangles": r.meshopt_triangles, "hausdorff": r.meshopt.hausdorff, "rms": r.meshopt.rms, "pinched_edges": r.meshopt_pinched},
+            "meshopt_permissive": {"triangles": r.permissive_triangles, "hausdorff": r.permissive.hausdorff, "rms": r.permissive.rms},
             "hausdorff_ratio": r.ours.hausdorff / r.meshopt.hausdorff,
             "rms_ratio": r.ours.rms / r.meshopt.rms,
         })).collect::<Vec<_>>(),
@@ -513,6 +558,7 @@ fn print_table(args: &CompareArgs, report: &Report) {
         ref rows,
         ref rotated,
         ref partitioned,
+        coarsest,
     } = *report;
     println!(
         "{}: {} triangles, {} vertices (median of {} runs)",
@@ -537,7 +583,11 @@ fn print_table(args: &CompareArgs, report: &Report) {
         source_bytes as f64 / t as f64
     );
     println!(
-        "{:>6} {:>8} | {:>8} {:>10} {:>10} | {:>8} {:>10} {:>10} | {:>7} {:>7} | {:>7}",
+        "coarsest level: ours {} | meshopt {} | meshopt Permissive {} triangles",
+        coarsest.ours, coarsest.meshopt, coarsest.permissive
+    );
+    println!(
+        "{:>6} {:>8} | {:>8} {:>10} {:>10} | {:>8} {:>10} {:>10} | {:>7} {:>7} | {:>7} | {:>8} {:>10} {:>10} | {:>7} {:>7}",
         "ratio",
         "target",
         "ours",
@@ -548,11 +598,16 @@ fn print_table(args: &CompareArgs, report: &Report) {
         "rms",
         "H ratio",
         "RMS rat",
-        "pinched"
+        "pinched",
+        "permiss.",
+        "hausdorff",
+        "rms",
+        "H ratio",
+        "RMS rat"
     );
     for r in rows {
         println!(
-            "{:>6} {:>8} | {:>8} {:>10.6} {:>10.6} | {:>8} {:>10.6} {:>10.6} | {:>7.3} {:>7.3} | {:>7}",
+            "{:>6} {:>8} | {:>8} {:>10.6} {:>10.6} | {:>8} {:>10.6} {:>10.6} | {:>7.3} {:>7.3} | {:>7} | {:>8} {:>10.6} {:>10.6} | {:>7.3} {:>7.3}",
             r.ratio,
             r.target,
             r.ours_triangles,
@@ -563,10 +618,18 @@ fn print_table(args: &CompareArgs, report: &Report) {
             r.meshopt.rms,
             r.ours.hausdorff / r.meshopt.hausdorff,
             r.ours.rms / r.meshopt.rms,
-            format!("{}/{}", r.ours_pinched, r.meshopt_pinched)
+            format!("{}/{}", r.ours_pinched, r.meshopt_pinched),
+            r.permissive_triangles,
+            r.permissive.hausdorff,
+            r.permissive.rms,
+            r.ours.hausdorff / r.permissive.hausdorff,
+            r.ours.rms / r.permissive.rms,
         );
     }
     println!("pinched: edges shared by more than two triangles (non-manifold), ours/meshopt");
+    println!(
+        "permiss.: meshoptimizer's simplify with Permissive (crosses seams and non-manifold edges)"
+    );
     if let Some(spec) = regions_spec {
         print_partitioned(spec, args.split == "error", ratios, partitioned);
     }

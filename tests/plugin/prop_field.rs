@@ -1,0 +1,201 @@
+//! A scene of real props: a glTF level that places FlightHelmet (six primitives, 94,722
+//! triangles) 400 times, every copy a node hierarchy over the same six meshes, converted by
+//! `MultiresScene`. The budget of 50,000 triangles holds every frame, the near copies keep
+//! far more than the far ones, and `PolygonBudget::min_pixels` leaves the smallest out.
+
+use super::skinned::app;
+use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_aslod::plugin::{
+    AslodStats, MultiresInstance, MultiresScene, MultiresSceneModels, PolygonBudget,
+};
+use std::path::{Path, PathBuf};
+
+const HELMET: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared/testdata/textured/FlightHelmet.glb"
+);
+
+/// Copies of the prop along each side of the square field.
+pub(crate) const SIDE: usize = 20;
+/// Metres between neighbouring copies.
+pub(crate) const SPACING: f32 = 1.5;
+
+/// Writes `prop` (a `.glb`) again into `dir` as `field.glb`, its scene replaced by `side²`
+/// copies on a square grid `spacing` apart in X and Z: each copy a node whose children are
+/// the prop's root nodes again, so every copy shows the same meshes. The binary chunk and
+/// everything else (materials, images) stay as they are.
+pub(crate) fn prop_field(prop: &Path, dir: &Path, side: usize, spacing: f32) -> PathBuf {
+    let bytes = std::fs::read(prop).expect("the prop reads");
+    let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let json_len = word(12);
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&bytes[20..20 + json_len]).expect("GLB JSON");
+    let bin = &bytes[20 + json_len..];
+    let scene = json["scene"].as_u64().unwrap_or(0) as usize;
+    let roots = json["scenes"][scene]["nodes"].clone();
+    let nodes = json["nodes"].as_array_mut().expect("nodes");
+    let mut copies = Vec::new();
+    for i in 0..side * side {
+        let (x, z) = ((i % side) as f32, (i / side) as f32);
+        let half = (side as f32 - 1.0) * 0.5;
+        let first_child = nodes.len() + 1;
+        let children: Vec<usize> = (0..roots.as_array().unwrap().len())
+            .map(|k| first_child + k)
+            .collect();
+        copies.push(nodes.len());
+        nodes.push(serde_json::json!({
+            "name": format!("copy{i}"),
+            "translation": [(x - half) * spacing, 0.0, (z - half) * spacing],
+            "children": children,
+        }));
+        for root in roots.as_array().unwrap() {
+            let mut node = nodes[root.as_u64().unwrap() as usize].clone();
+            node["name"] = format!("copy{i}_{}", node["name"].as_str().unwrap_or("")).into();
+            nodes.push(node);
+        }
+    }
+    json["scenes"] = serde_json::json!([{ "nodes": copies }]);
+    json["scene"] = 0.into();
+    let mut text = serde_json::to_vec(&json).unwrap();
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    let total = 12 + 8 + text.len() + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    out.extend_from_slice(bin);
+    let path = dir.join("field.glb");
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// Spawns `field.glb` of `dir`'s asset folder as a `MultiresScene` and runs until it is
+/// converted and every model has its asset; returns the models.
+pub(crate) fn spawn_field(app: &mut App) -> Vec<Entity> {
+    let gltf = app
+        .world()
+        .resource::<AssetServer>()
+        .load(GltfAssetLabel::Scene(0).from_asset("field.glb"));
+    let root = app
+        .world_mut()
+        .spawn((
+            WorldAssetRoot(gltf),
+            MultiresScene::default(),
+            Transform::default(),
+        ))
+        .id();
+    for _ in 0..20_000 {
+        app.update();
+        let Some(models) = app.world().get::<MultiresSceneModels>(root) else {
+            continue;
+        };
+        let models: Vec<Entity> = models.models().collect();
+        let ready = models
+            .iter()
+            .all(|&e| app.world().get::<MultiresInstance>(e).is_some());
+        if ready {
+            return models;
+        }
+    }
+    panic!("the field was not converted");
+}
+
+#[test]
+fn four_hundred_real_props_stay_within_the_budget() {
+    let dir = std::env::temp_dir().join(format!("aslod-field-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    prop_field(HELMET.as_ref(), &dir, SIDE, SPACING);
+    let budget = 50_000;
+    let mut app = app(budget, dir.to_str().unwrap());
+    // Low over one corner of the field, looking across it: the nearest helmets fill the
+    // view, the farthest are a few pixels.
+    let half = (SIDE as f32 - 1.0) * 0.5 * SPACING;
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Transform::from_xyz(-half - 1.0, 0.8, -half - 1.0)
+            .looking_at(Vec3::new(half, 0.0, half), Vec3::Y),
+    ));
+    let models = spawn_field(&mut app);
+    assert_eq!(models.len(), SIDE * SIDE * 6, "six models a copy");
+    let shown = |app: &App| app.world().resource::<AslodStats>().triangles;
+    for frame in 0..20 {
+        app.update();
+        let stats = app.world().resource::<AslodStats>();
+        assert!(stats.allocated, "frame {frame}: no allocation");
+        assert!(
+            shown(&app) <= u64::from(budget),
+            "frame {frame}: {} triangles over the budget",
+            shown(&app)
+        );
+    }
+    // The budget is spent where it shows: the nearest copy's six models hold far more than
+    // the farthest copy's, which sit at or near their coarsest levels.
+    let triangles_at = |app: &App, at: Vec3| -> usize {
+        models
+            .iter()
+            .filter(|&&e| {
+                let placed = app.world().get::<GlobalTransform>(e).unwrap().translation();
+                placed.distance(at) < 0.5 * SPACING
+            })
+            .map(|&e| {
+                app.world()
+                    .get::<MultiresInstance>(e)
+                    .unwrap()
+                    .triangle_count()
+            })
+            .sum()
+    };
+    let near = triangles_at(&app, Vec3::new(-half, 0.0, -half));
+    let far = triangles_at(&app, Vec3::new(half, 0.0, half));
+    eprintln!(
+        "field: {} triangles shown, nearest copy {near}, farthest {far}",
+        shown(&app)
+    );
+    assert!(shown(&app) > u64::from(budget) / 2, "the budget is used");
+    assert!(
+        near > 20 * far.max(1),
+        "nearest {near} against farthest {far}"
+    );
+
+    // With a minimum size of 8 pixels the far copies show nothing and count nothing.
+    app.world_mut().resource_mut::<PolygonBudget>().min_pixels = 8.0;
+    app.update();
+    app.update();
+    let hidden = models
+        .iter()
+        .filter(|&&e| {
+            let instance = app.world().get::<MultiresInstance>(e).unwrap();
+            instance
+                .region_entities()
+                .iter()
+                .all(|&r| app.world().get::<Visibility>(r) == Some(&Visibility::Hidden))
+        })
+        .count();
+    eprintln!("min_pixels 8: {hidden} of {} models hidden", models.len());
+    assert!(hidden > 0, "no model is below 8 pixels");
+    assert!(hidden < models.len(), "every model is hidden");
+    assert!(shown(&app) <= u64::from(budget));
+    // Back to no minimum: every region is drawn again.
+    app.world_mut().resource_mut::<PolygonBudget>().min_pixels = 0.0;
+    app.update();
+    app.update();
+    let still_hidden = models
+        .iter()
+        .flat_map(|&e| {
+            app.world()
+                .get::<MultiresInstance>(e)
+                .unwrap()
+                .region_entities()
+                .to_vec()
+        })
+        .filter(|&r| app.world().get::<Visibility>(r) == Some(&Visibility::Hidden))
+        .count();
+    assert_eq!(still_hidden, 0);
+    std::fs::remove_dir_all(&dir).ok();
+}
