@@ -67,6 +67,11 @@ struct Args {
     /// Leave meshoptimizer's levels out.
     #[arg(long)]
     no_peer: bool,
+    /// meshoptimizer's levels with its `Permissive` flag (past seams and non-manifold
+    /// edges): the peer for assets its plain simplification cannot reduce, such as
+    /// flat-shaded ones.
+    #[arg(long)]
+    peer_permissive: bool,
     /// Draw a procedural asset instead of MODEL: a bumpy sphere with vertex colours (bands
     /// that cross its tessellation), a second UV set and a custom attribute (`_TINT`, stripes
     /// of brightness that a material of the example's reads), written as `procedural.glb`
@@ -192,7 +197,8 @@ fn run(args: &Args) -> Result<(), String> {
             });
             shots.push((format!("ours_{ratio}"), ours));
             if !args.no_peer {
-                let (swapped, peer_triangles) = stage.swap_in_peer(&counts)?;
+                let (swapped, peer_triangles) =
+                    stage.swap_in_peer(&counts, args.peer_permissive)?;
                 stage.show(true, false);
                 let peer = stage.capture_stable()?;
                 stage.restore(swapped);
@@ -495,6 +501,7 @@ impl Stage {
     fn swap_in_peer(
         &mut self,
         counts: &[(Handle<Mesh>, usize)],
+        permissive: bool,
     ) -> Result<(Swapped, usize), String> {
         let world = self.app.world_mut();
         let mut levels = Vec::new();
@@ -505,7 +512,7 @@ impl Stage {
                 .get(source)
                 .ok_or("a source mesh is gone")?
                 .clone();
-            let indices = meshopt_level(&mesh, *count)?;
+            let indices = meshopt_level(&mesh, *count, permissive)?;
             let mut level = mesh;
             level.insert_indices(Indices::U32(indices));
             levels.push((source.clone(), level));
@@ -598,8 +605,8 @@ fn finite(values: &VertexAttributeValues) -> bool {
 
 /// meshoptimizer's `simplify_with_attributes` level of `mesh` with `triangles` triangles
 /// (normals, the first UV set and any colours weighted by [`PEER_WEIGHTS`]), as the index
-/// buffer a Bevy user would draw.
-fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
+/// buffer a Bevy user would draw; `permissive`: with its `Permissive` flag.
+fn meshopt_level(mesh: &Mesh, triangles: usize, permissive: bool) -> Result<Vec<u32>, String> {
     let indexed = from_bevy_mesh(mesh).map_err(|e| e.to_string())?;
     let n = indexed.positions.len();
     let normals = indexed
@@ -644,7 +651,11 @@ fn meshopt_level(mesh: &Mesh, triangles: usize) -> Result<Vec<u32>, String> {
         &vec![false; n],
         3 * triangles,
         f32::MAX,
-        meshopt::SimplifyOptions::None,
+        if permissive {
+            meshopt::SimplifyOptions::Permissive
+        } else {
+            meshopt::SimplifyOptions::None
+        },
         None,
     ))
 }

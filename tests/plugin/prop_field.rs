@@ -135,7 +135,7 @@ fn four_hundred_real_props_stay_within_the_budget() {
         );
     }
     // The budget is spent where it shows: the nearest copy's six models hold far more than
-    // the farthest copy's, which sit at or near their coarsest levels.
+    // the farthest copy's.
     let triangles_at = |app: &App, at: Vec3| -> usize {
         models
             .iter()
@@ -158,8 +158,10 @@ fn four_hundred_real_props_stay_within_the_budget() {
         shown(&app)
     );
     assert!(shown(&app) > u64::from(budget) / 2, "the budget is used");
+    // α = 3 (the paper's) flattens the split: a copy a hundred times larger on screen gets
+    // about five times the triangles.
     assert!(
-        near > 20 * far.max(1),
+        near > 5 * far.max(1),
         "nearest {near} against farthest {far}"
     );
 
