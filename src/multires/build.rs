@@ -108,7 +108,7 @@ pub struct BuildOptions {
     /// [`CollapseOperator::Edge`] (see `docs/performance.md`, "Collapse operators").
     pub operator: CollapseOperator,
     /// Weight of the vertex normals in the collapse cost (see
-    /// [`uv_weight`](Self::uv_weight)). Default: `0.5`.
+    /// [`uv_weight`](Self::uv_weight)). Default: `0.25`.
     pub normal_weight: f64,
     /// Weight of the first UV set in the collapse cost. Each attribute vertex keeps an
     /// attribute quadric (Hoppe 1999's metric, in meshoptimizer's form and units, as its
@@ -122,9 +122,12 @@ pub struct BuildOptions {
     /// of collapses changes: the error table stays geometric. `0.0` turns a term off;
     /// negative or non-finite values count as `0.0` (with a warning).
     ///
-    /// Default: `0.25`. The defaults (normals 0.5, UVs 0.25, colours 0.25) were chosen on
-    /// rendered images against meshoptimizer's and on geometric distance (`aslod compare`);
-    /// see `docs/performance.md`, "Textured assets in pixels" and "Attribute terms".
+    /// Default: `0.25`. The defaults (normals, UVs and colours 0.25 each) were chosen on
+    /// rendered images against meshoptimizer's and on geometric distance (`aslod compare`):
+    /// with [`permissive`](Self::permissive) collapses crossing seams at their attribute
+    /// cost, normals at 0.5 cost FlightHelmet up to 1.7× meshoptimizer's geometric error and
+    /// at 0.1 cost WaterBottle 2 dB at half its triangles; see `docs/performance.md`, "Real
+    /// assets", "Textured assets in pixels" and "Attribute terms".
     pub uv_weight: f64,
     /// Weight of the vertex colours ([`COLOR_ID`](crate::mesh::COLOR_ID), RGBA as floats)
     /// in the collapse cost (see [`uv_weight`](Self::uv_weight)). Default: `0.25`.
@@ -207,7 +210,7 @@ impl Default for BuildOptions {
             view_dependent: false,
             pair_distance: 0.0,
             operator: CollapseOperator::Edge,
-            normal_weight: 0.5,
+            normal_weight: 0.25,
             uv_weight: 0.25,
             color_weight: 0.25,
             weld_distance: 1e-6,

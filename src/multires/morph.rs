@@ -288,6 +288,23 @@ impl MorphTables {
             removed_at.push(at);
             counts.push(pm.level_triangle_counts());
         }
+        // A vertex whose every triangle goes with the collapse that moves its position (a
+        // flat-shaded corner, a part erased, in a permissive build) has no rewritten corner,
+        // so no pair: it takes a copy's move at that step, or else a vertex at the target, so
+        // that its attributes go where its position goes.
+        for g in 0..n {
+            let (step, q) = parent[position_of[g] as usize];
+            if vertex_parent[g].0 != u32::MAX || step == u32::MAX {
+                continue;
+            }
+            let sibling = copies.get(position_of[g] as usize).iter().find_map(|&c| {
+                let (s, to) = vertex_parent[c as usize];
+                (s == step).then_some(to)
+            });
+            if let Some(to) = sibling.or_else(|| copies.get(q as usize).first().copied()) {
+                vertex_parent[g] = (step, to);
+            }
+        }
         Self {
             position_of,
             copies,

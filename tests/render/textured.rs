@@ -124,7 +124,14 @@ fn a_flat_shaded_asset_keeps_its_hard_edges_at_a_tenth() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("textured-flat");
     let _ = std::fs::remove_dir_all(&dir);
     let output = Command::new(&binary)
-        .args(["--views", "2", "--ratios", "0.1", "--peer-permissive", "--out"])
+        .args([
+            "--views",
+            "2",
+            "--ratios",
+            "0.1",
+            "--peer-permissive",
+            "--out",
+        ])
         .arg(&dir)
         .arg(robot)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -152,6 +159,9 @@ fn a_flat_shaded_asset_keeps_its_hard_edges_at_a_tenth() {
     for view in report["views"].as_array().expect("views") {
         let shown = view["ratios"][0]["triangles"].as_u64().expect("triangles");
         let full = report["full_triangles"].as_u64().expect("full");
-        assert!(shown * 5 <= full, "{shown} of {full}: the robot did not reduce");
+        assert!(
+            shown * 5 <= full,
+            "{shown} of {full}: the robot did not reduce"
+        );
     }
 }
