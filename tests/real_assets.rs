@@ -199,3 +199,50 @@ fn float_noise_on_a_seam_welds() {
     );
     assert_eq!(apart.min_triangles(), 2, "apart: two open halves");
 }
+
+/// Every primitive as `MultiresScene` builds it (`mrm::bake_gltf`, which `aslod bake` and
+/// the scene share) reaches the bound, except skinned ones cut into several regions: one per
+/// bone (rigid) and blended ones between two, each region's border held by the strict
+/// rules, they stop where their borders do (RobotExpressive's hands keep 89 of 124 and 124
+/// of 148, the Knight's limbs about a quarter; hierarchical regions would let the borders
+/// go). Those are printed (`--nocapture`), not held to the bound.
+#[test]
+fn scene_primitives_reach_the_bound_unless_region_borders_hold_them() {
+    use bevy_aslod::mrm::bake_gltf;
+    use bevy_aslod::skin::DEFAULT_RIGID_DELTA;
+    let single = |m: &IndexedMesh| Partition::grid(m, GridPlane::XZ, 1, 1);
+    let mut held = 0;
+    for file in [
+        "characters/RobotExpressive.glb",
+        "characters/KayKit_Knight.glb",
+        "textured/FlightHelmet.glb",
+    ] {
+        let path = format!("{TESTDATA}/{file}");
+        let baked = bake_gltf(
+            path.as_ref(),
+            &single,
+            &BuildOptions::default(),
+            DEFAULT_RIGID_DELTA,
+            &mut |_| {},
+        )
+        .unwrap_or_else(|e| panic!("{path}: {e}"));
+        for (key, mesh) in &baked {
+            let regions = mesh.regions.regions();
+            let full: usize = regions.iter().map(|r| r.max_triangles()).sum();
+            let min: usize = regions.iter().map(|r| r.min_triangles()).sum();
+            let by_borders = mesh.skin.is_some() && regions.len() > 1;
+            eprintln!(
+                "{file} {key}: {full} -> {min} in {} regions{}",
+                regions.len(),
+                if by_borders { ", skinned" } else { "" }
+            );
+            if by_borders {
+                held += 1;
+            } else {
+                assert!(min <= bound(full), "{file} {key}: {min} of {full}");
+            }
+        }
+    }
+    // The exceptions are the skinned limbs and hands, not the whole characters.
+    assert!(held <= 10, "{held} primitives held by their region borders");
+}
