@@ -15,7 +15,7 @@ mod limits;
 mod obj;
 mod ply;
 mod tangents;
-mod weld;
+pub(crate) mod weld;
 
 pub(crate) use attributes::gather_all;
 pub use attributes::{

@@ -125,36 +125,26 @@ pub fn weld_positions_within(positions: &[Vec3], indices: &[u32], distance: f32)
             continue;
         }
         let p = positions[v as usize];
-        let c = cell_of(p);
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let Some(list) = grid.get(&(c + glam::I64Vec3::new(dx, dy, dz))) else {
-                        continue;
-                    };
-                    for &q in list {
-                        if q <= v || positions[q as usize].distance_squared(p) > limit {
-                            continue;
-                        }
-                        let (a, b) = (root(&mut parent, v), root(&mut parent, q));
-                        if a == b {
-                            continue;
-                        }
-                        let apart = members[&a].iter().any(|m| {
-                            shares
-                                .get(m)
-                                .is_some_and(|s| s.iter().any(|x| members[&b].contains(x)))
-                        });
-                        if apart {
-                            continue;
-                        }
-                        let (keep, gone) = (a.min(b), a.max(b));
-                        parent[gone as usize] = keep;
-                        let moved = members.remove(&gone).unwrap_or_default();
-                        members.entry(keep).or_default().extend(moved);
-                    }
-                }
+        for q in cells_around(&grid, cell_of(p)) {
+            if q <= v || positions[q as usize].distance_squared(p) > limit {
+                continue;
             }
+            let (a, b) = (root(&mut parent, v), root(&mut parent, q));
+            if a == b {
+                continue;
+            }
+            let apart = members[&a].iter().any(|m| {
+                shares
+                    .get(m)
+                    .is_some_and(|s| s.iter().any(|x| members[&b].contains(x)))
+            });
+            if apart {
+                continue;
+            }
+            let (keep, gone) = (a.min(b), a.max(b));
+            parent[gone as usize] = keep;
+            let moved = members.remove(&gone).unwrap_or_default();
+            members.entry(keep).or_default().extend(moved);
         }
     }
     let remap: Vec<u32> = (0..n as u32)
@@ -162,4 +152,16 @@ pub fn weld_positions_within(positions: &[Vec3], indices: &[u32], distance: f32)
         .collect();
     let unique = members.len();
     WeldMap { remap, unique }
+}
+
+/// The items of a hash grid's 27 cells around (and at) cell `c`.
+pub(crate) fn cells_around(
+    grid: &HashMap<glam::I64Vec3, Vec<u32>>,
+    c: glam::I64Vec3,
+) -> impl Iterator<Item = u32> + '_ {
+    (-1..=1)
+        .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| (dx, dy, dz))))
+        .filter_map(move |(dx, dy, dz)| grid.get(&(c + glam::I64Vec3::new(dx, dy, dz))))
+        .flatten()
+        .copied()
 }

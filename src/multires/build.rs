@@ -620,19 +620,10 @@ impl<'a> Builder<'a> {
             let c = cell(at);
             let part = root(&mut parent, p);
             near.clear();
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let Some(list) = grid.get(&(c + glam::I64Vec3::new(dx, dy, dz))) else {
-                            continue;
-                        };
-                        for &q in list {
-                            let d = self.points[q as usize].distance(at);
-                            if d <= distance && root(&mut parent, q) != part {
-                                near.push((d, q));
-                            }
-                        }
-                    }
+            for q in crate::mesh::weld::cells_around(&grid, c) {
+                let d = self.points[q as usize].distance(at);
+                if d <= distance && root(&mut parent, q) != part {
+                    near.push((d, q));
                 }
             }
             near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
