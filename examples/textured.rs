@@ -78,6 +78,10 @@ struct Args {
     /// into the output folder.
     #[arg(long)]
     procedural: bool,
+    /// With `--procedural`: flat-shade the sphere (every triangle its own three vertices,
+    /// with the face's normal: hard edges everywhere).
+    #[arg(long)]
+    flat: bool,
     /// Our build's `BuildOptions::normal_weight` (default: the crate's).
     #[arg(long)]
     normal_weight: Option<f64>,
@@ -127,7 +131,7 @@ fn run(args: &Args) -> Result<(), String> {
         .map_err(|e| format!("create {}: {e}", args.out.display()))?;
     let model = if args.procedural {
         let path = args.out.join("procedural.glb");
-        std::fs::write(&path, procedural_glb())
+        std::fs::write(&path, procedural_glb(args.flat))
             .map_err(|e| format!("write {}: {e}", path.display()))?;
         path
     } else {
@@ -663,7 +667,8 @@ fn meshopt_level(mesh: &Mesh, triangles: usize, permissive: bool) -> Result<Vec<
 /// A bumpy UV sphere (48 × 96 quads, UV seam) as a GLB: positions, normals, `TEXCOORD_0`,
 /// `TEXCOORD_1` (the same, halved), `COLOR_0` (RGBA bands around the sphere that cross its
 /// rows at an angle), `_TINT` (a brightness: 16 stripes from pole to pole), a white material.
-fn procedural_glb() -> Vec<u8> {
+/// `flat`: every triangle gets its own three vertices with the face's normal.
+fn procedural_glb(flat: bool) -> Vec<u8> {
     let (rings, segments) = (48u32, 96u32);
     let (mut positions, mut normals, mut uv0, mut uv1, mut colors, mut tints) = (
         Vec::new(),
@@ -697,6 +702,24 @@ fn procedural_glb() -> Vec<u8> {
             let (a, b) = (r * cols + s, (r + 1) * cols + s);
             indices.extend_from_slice(&[a, a + 1, b, a + 1, b + 1, b]);
         }
+    }
+    if flat {
+        let corner = |v: &[u32]| v.iter().map(|&i| i as usize).collect::<Vec<_>>();
+        let corners = corner(&indices);
+        normals = corners
+            .chunks_exact(3)
+            .flat_map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| positions[t[k]]);
+                let n = (b - a).cross(c - a).normalize_or_zero();
+                [n; 3]
+            })
+            .collect();
+        positions = corners.iter().map(|&i| positions[i]).collect();
+        uv0 = corners.iter().map(|&i| uv0[i]).collect();
+        uv1 = corners.iter().map(|&i| uv1[i]).collect();
+        colors = corners.iter().map(|&i| colors[i]).collect();
+        tints = corners.iter().map(|&i| tints[i]).collect();
+        indices = (0..corners.len() as u32).collect();
     }
     let mut bin = Vec::new();
     let mut views = Vec::new();
