@@ -151,7 +151,8 @@ pub struct BuildOptions {
     /// the permissive tail also lets collapses pinch the surface into non-manifold edges.
     /// Flat-shaded and split-vertex meshes, many-part props and non-manifold assets then
     /// reduce to a few triangles instead of stopping where their seams, borders and parts do
-    /// (a level never goes below one triangle). Levels still use a subset of the source
+    /// (a whole mesh keeps at least one triangle; a region may give up all of its own, its
+    /// neighbours' borders staying where they are). Levels still use a subset of the source
     /// vertices. Region builds keep their borders: a collapse of a vertex next to another
     /// region's, or onto one, follows the strict rules. Ignored with
     /// [`view_dependent`](Self::view_dependent) (its refinement needs manifold steps).
@@ -1097,6 +1098,9 @@ impl<'a> Builder<'a> {
                     return false;
                 }
                 let partner = self.partner(tri[k], w);
+                if partner == u32::MAX {
+                    return false;
+                }
                 scratch.map.push((tri[k], partner));
             }
             if loose {
