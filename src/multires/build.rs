@@ -146,9 +146,9 @@ pub struct BuildOptions {
     /// collapse may cross an attribute seam (each attribute vertex of the vertex that goes
     /// then takes the one at the target that costs it the least attribute error, and pays
     /// that error), move a non-manifold vertex, or an open border's vertex off its border,
-    /// remove every triangle of a non-manifold edge, and let a small part go (its last
-    /// collapse pays the length it moves, the size of what goes). Once nothing else is left,
-    /// the permissive tail also lets collapses pinch the surface into non-manifold edges.
+    /// and let a small part go (its last collapse pays the length it moves, the size of what
+    /// goes). Once nothing else is left, the permissive tail also lets collapses pinch the
+    /// surface into non-manifold edges, and remove every triangle of a non-manifold edge.
     /// Flat-shaded and split-vertex meshes, many-part props and non-manifold assets then
     /// reduce to a few triangles instead of stopping where their seams, borders and parts do
     /// (a whole mesh keeps at least one triangle; a region may give up all of its own, its
@@ -245,6 +245,11 @@ enum EdgeClass {
     Border,
     Seam,
 }
+
+/// The most vertex pairs or removed triangles a permissive collapse may record in one step,
+/// with room left for the identity pairs of the corners it pins (the records hold 256 and
+/// 255: `records::Fields::MAX_BITS`).
+const MAX_STEP_ITEMS: usize = 240;
 
 /// The most pair candidates (the topology compromise) a position keeps, nearest first.
 const MAX_PAIRS: usize = 8;
@@ -1026,7 +1031,7 @@ impl<'a> Builder<'a> {
             edge_tris += 1;
             let (a, b) = (tri[ku], tri[kw]);
             match map.iter().find(|m| m.0 == a) {
-                // The permissive tail keeps the first (a non-manifold edge's triangles may
+                // A permissive collapse keeps the first (a non-manifold edge's triangles may
                 // pair an attribute vertex with several).
                 Some(&(_, existing)) if existing != b && !loose => return false,
                 Some(_) => {}
@@ -1036,10 +1041,11 @@ impl<'a> Builder<'a> {
         if edge_tris == 0 {
             return self.check_pair(u, w, scratch);
         }
-        if edge_tris > 2 && !loose {
+        // A step's records hold at most 255 removed triangles (`Fields::MAX_BITS`).
+        if edge_tris > 2 && (!loose || edge_tris > MAX_STEP_ITEMS) {
             return false;
         }
-        // The permissive tail never takes the last triangles: a mesh keeps at least one.
+        // A permissive collapse never takes the last triangles: a mesh keeps at least one.
         if loose && self.live_triangles <= edge_tris {
             return false;
         }
@@ -1145,12 +1151,15 @@ impl<'a> Builder<'a> {
                 return false;
             }
         }
-        true
+        // A step's records hold at most 256 vertex pairs: the attribute vertices a permissive
+        // collapse moves, and the corners it pins where it moves none (at most two a removed
+        // triangle).
+        scratch.map.len() + 2 * edge_tris <= MAX_STEP_ITEMS
     }
 
-    /// Whether the permissive tail's rules apply to collapsing `u` onto `w`: the tail has
-    /// begun, and neither is next to another region's vertex (region borders keep the strict
-    /// rules, which keep them crack-free).
+    /// Whether the permissive rules ([`BuildOptions::permissive`]) apply to collapsing `u`
+    /// onto `w`: they are on, and neither is next to another region's vertex (region borders
+    /// keep the strict rules, which keep them crack-free).
     #[inline]
     fn is_loose(&self, u: u32, w: u32) -> bool {
         self.permissive && self.off_fronts(u, w)
@@ -1387,7 +1396,9 @@ impl<'a> Builder<'a> {
         // Steps past 4,095 corners only make the records wide.
         let movable = match self.kind[u as usize] {
             Kind::Manifold | Kind::Border => true,
-            Kind::Complex => self.permissive,
+            Kind::Complex => {
+                self.permissive && (self.anchor.is_empty() || !self.touches_anchor(u, None))
+            }
             Kind::Pinned => false,
         };
         if !movable

@@ -353,13 +353,21 @@ pub(crate) fn systems() -> ScheduleConfigs<ScheduleSystem> {
 
 /// Hides the region entities of the models too small to draw
 /// ([`PolygonBudget::min_pixels`](super::PolygonBudget::min_pixels)) and shows them again
-/// once they are not; view-dependent models, whose regions hide behind their level, are left
-/// alone.
+/// once they are not; view-dependent models, whose regions hide behind their level (and show
+/// again when it goes), are left alone.
 pub(crate) fn hide_too_small(
-    mut models: Query<(&MultiresInstance, &mut AllocationSlot), Without<ViewDependentState>>,
+    mut models: Query<(
+        &MultiresInstance,
+        &mut AllocationSlot,
+        Has<ViewDependentState>,
+    )>,
     mut regions: Query<&mut Visibility, With<LodRegion>>,
 ) {
-    for (instance, mut slot) in &mut models {
+    for (instance, mut slot, view_dependent) in &mut models {
+        if view_dependent {
+            slot.hidden = false;
+            continue;
+        }
         if slot.too_small == slot.hidden {
             continue;
         }

@@ -182,6 +182,24 @@ fn four_hundred_real_props_stay_within_the_budget() {
     eprintln!("min_pixels 8: {hidden} of {} models hidden", models.len());
     assert!(hidden > 0, "no model is below 8 pixels");
     assert!(hidden < models.len(), "every model is hidden");
+    // The nearest copy fills the view: drawn, with its triangles counted.
+    let nearest: Vec<Entity> = models
+        .iter()
+        .copied()
+        .filter(|&e| {
+            let placed = app.world().get::<GlobalTransform>(e).unwrap().translation();
+            placed.distance(Vec3::new(-half, 0.0, -half)) < 0.5 * SPACING
+        })
+        .collect();
+    assert_eq!(nearest.len(), 6);
+    for e in nearest {
+        let instance = app.world().get::<MultiresInstance>(e).unwrap();
+        let drawn = instance
+            .region_entities()
+            .iter()
+            .all(|&r| app.world().get::<Visibility>(r) != Some(&Visibility::Hidden));
+        assert!(drawn, "a model of the nearest copy is hidden");
+    }
     assert!(shown(&app) <= u64::from(budget));
     // Back to no minimum: every region is drawn again.
     app.world_mut().resource_mut::<PolygonBudget>().min_pixels = 0.0;

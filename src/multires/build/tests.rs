@@ -3,6 +3,7 @@
 
 use super::{BuildOptions, Builder, CollapseOperator, Constraints, Scratch, build, settle};
 use crate::mesh::{IndexedMesh, test_grid};
+use crate::multires::ProgressiveMesh;
 use glam::Vec3;
 
 /// The arena adjacency behaves as a `Vec` per position under pushes past its room
@@ -532,4 +533,45 @@ fn triangle_collapses_follow_their_edge_onto_the_same_vertex() {
     println!("steps that finish a triangle: edge {edge:.3}, triangle {triangle:.3}");
     assert!(triangle > 0.3, "{triangle}");
     assert!(triangle > 2.0 * edge, "{triangle} against {edge}");
+}
+
+/// A flat-shaded fan of `n` triangles around one centre on the plane y = 0: every triangle
+/// its own three vertices, normals up.
+fn flat_fan(n: u32) -> IndexedMesh {
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    let angle = |k: u32| std::f32::consts::TAU * (k % n) as f32 / n as f32;
+    for k in 0..n {
+        let (a, b) = (angle(k), angle(k + 1));
+        let first = positions.len() as u32;
+        indices.extend_from_slice(&[first, first + 1, first + 2]);
+        positions.extend_from_slice(&[
+            Vec3::ZERO,
+            Vec3::new(b.cos(), 0.0, b.sin()),
+            Vec3::new(a.cos(), 0.0, a.sin()),
+        ]);
+    }
+    let mut mesh = IndexedMesh::new(positions, indices);
+    mesh.normals = Some(vec![Vec3::Y; mesh.positions.len()]);
+    mesh
+}
+
+/// A permissive collapse moves every attribute vertex of the vertex that goes in one step,
+/// which the records hold up to 256 of: moving the centre of a flat-shaded fan onto its rim
+/// is valid with 100 triangles around it, and refused with 400 (the build would fail to pack
+/// its records).
+#[test]
+fn permissive_collapses_fit_a_steps_records() {
+    for (n, fits) in [(100, true), (400, false)] {
+        let mesh = flat_fan(n);
+        let options = BuildOptions::default();
+        let mut builder = Builder::new(&mesh, &options, None, None);
+        builder.fill_quadrics();
+        let (centre, rim) = (builder.pos[0], builder.pos[1]);
+        assert_eq!(builder.is_valid(centre, rim), fits, "a fan of {n}");
+        assert!(
+            ProgressiveMesh::build(&mesh, &options).is_ok(),
+            "a fan of {n}"
+        );
+    }
 }
