@@ -98,17 +98,11 @@ pub(crate) fn allocate(
         .sum();
     frame.serial += 1;
     let mut items: Vec<ModelItem> = models.iter_mut().collect();
-    let min_pixels = budget.min_pixels;
-    let min_area = if full_detail.0 || !(min_pixels.is_finite() && min_pixels > 0.0) {
-        0.0
-    } else {
-        min_pixels * min_pixels
-    };
     let view_dependent = fill_inputs(
         &mut items,
         &mut scratch.inputs,
         &cameras,
-        (full_detail.0, min_area),
+        (full_detail.0, budget.min_area(full_detail.0)),
         frame.serial,
     );
     let fixed_cost = u32::try_from(fixed_cost + view_dependent).unwrap_or(u32::MAX);

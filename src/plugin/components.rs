@@ -122,6 +122,18 @@ impl PolygonBudget {
         }
     }
 
+    /// The projected area in pixels² below which a model shows nothing
+    /// ([`min_pixels`](Self::min_pixels) squared); `0` when that is off, or at
+    /// `full_detail`.
+    pub(crate) fn min_area(&self, full_detail: bool) -> f32 {
+        let m = self.min_pixels;
+        if full_detail || !(m.is_finite() && m > 0.0) {
+            0.0
+        } else {
+            m * m
+        }
+    }
+
     /// The allocator's parameters for a fixed cost.
     #[must_use]
     pub fn params(&self, fixed_cost: u32) -> AllocationParams {

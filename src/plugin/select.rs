@@ -14,7 +14,7 @@
 //!    vertices `Upload` writes. Skinned models write theirs in `Deform`.
 
 use super::allocate::FrameAllocation;
-use super::components::{AslodStats, Geomorph, LodRegion};
+use super::components::{AslodStats, FullDetail, Geomorph, LodRegion, PolygonBudget};
 use super::geomorph::{Clock, GpuGeomorph, MorphChange, MorphOutput, RegionGeomorphs, RegionGrant};
 use super::instance::{AllocationSlot, MultiresInstance, RegionStaging, StagedIndices};
 use super::shared::SharedState;
@@ -354,8 +354,12 @@ pub(crate) fn systems() -> ScheduleConfigs<ScheduleSystem> {
 /// Hides the region entities of the models too small to draw
 /// ([`PolygonBudget::min_pixels`](super::PolygonBudget::min_pixels)) and shows them again
 /// once they are not; view-dependent models, whose regions hide behind their level (and show
-/// again when it goes), are left alone.
+/// again when it goes), are left alone. With `min_pixels` off and nothing hidden it visits no
+/// model; `hidden` counts the models it left hidden.
 pub(crate) fn hide_too_small(
+    budget: Res<PolygonBudget>,
+    full_detail: Res<FullDetail>,
+    mut hidden: Local<usize>,
     mut models: Query<(
         &MultiresInstance,
         &mut AllocationSlot,
@@ -363,15 +367,21 @@ pub(crate) fn hide_too_small(
     )>,
     mut regions: Query<&mut Visibility, With<LodRegion>>,
 ) {
+    if budget.min_area(full_detail.0) == 0.0 && *hidden == 0 {
+        return;
+    }
+    *hidden = 0;
     for (instance, mut slot, view_dependent) in &mut models {
+        // A view-dependent model's regions are hidden behind its level, and shown when it goes.
+        let hide = slot.too_small && !view_dependent;
+        *hidden += usize::from(hide);
+        if hide == slot.hidden {
+            continue;
+        }
+        slot.hidden = hide;
         if view_dependent {
-            slot.hidden = false;
             continue;
         }
-        if slot.too_small == slot.hidden {
-            continue;
-        }
-        slot.hidden = slot.too_small;
         let visibility = if slot.hidden {
             Visibility::Hidden
         } else {
