@@ -1394,11 +1394,10 @@ impl<'a> Builder<'a> {
         // Vertices with more than 21,845 triangles are never removed (a step would rewrite more
         // than 65,535 corners): a guard against huge fans, whose ring scans grow quadratic.
         // Steps past 4,095 corners only make the records wide.
+        let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
         let movable = match self.kind[u as usize] {
             Kind::Manifold | Kind::Border => true,
-            Kind::Complex => {
-                self.permissive && (self.anchor.is_empty() || !self.touches_anchor(u, None))
-            }
+            Kind::Complex => self.permissive && !front,
             Kind::Pinned => false,
         };
         if !movable
@@ -1436,7 +1435,6 @@ impl<'a> Builder<'a> {
         self.wedges_into(u, &mut wedges);
         let mut candidates = std::mem::take(&mut self.candidates);
         candidates.clear();
-        let front = !self.anchor.is_empty() && self.touches_anchor(u, None);
         // The seam rule of `check_collapse`, which only u's triangles decide: a vertex on a
         // seam never goes off it, so those candidates are left out here rather than chosen
         // (their attribute error counts one side only) and refused at validation.
@@ -1448,7 +1446,11 @@ impl<'a> Builder<'a> {
             if front && !self.touches_anchor(u, Some(w)) && self.touches_anchor(w, None) {
                 continue;
             }
-            if !seams.is_empty() && seams.binary_search(&w).is_err() && !self.is_loose(u, w) {
+            // `is_loose(u, w)`, with `u`'s side known.
+            let loose = self.permissive
+                && !front
+                && (self.anchor.is_empty() || !self.touches_anchor(w, None));
+            if !seams.is_empty() && seams.binary_search(&w).is_err() && !loose {
                 continue;
             }
             if let Some(e) = self.quadric_cost(u, w) {
