@@ -98,27 +98,8 @@ impl Data<'_> {
         let mut out = match accessor.view() {
             Some(view) => {
                 let bytes = self.view_bytes(&view)?;
-                let stride = view.stride().unwrap_or(size);
-                if stride < size {
-                    return Err(gltf_error(format!(
-                        "accessors[{a}]: bufferViews[{}].byteStride {stride} is smaller than \
-                         the element size {size}",
-                        view.index()
-                    )));
-                }
+                let stride = stride_within(accessor, &view, bytes.len())?;
                 let start = accessor.offset();
-                let needed = stride
-                    .checked_mul(count - 1)
-                    .and_then(|n| n.checked_add(start))
-                    .and_then(|n| n.checked_add(size));
-                if needed.is_none_or(|n| n > bytes.len()) {
-                    return Err(gltf_error(format!(
-                        "accessors[{a}]: {count} elements of {size} bytes (stride {stride}, \
-                         offset {start}) do not fit in bufferViews[{}] ({} bytes)",
-                        view.index(),
-                        bytes.len()
-                    )));
-                }
                 (0..count)
                     .map(|i| decode(&bytes[start + i * stride..][..size]))
                     .collect()
@@ -178,20 +159,65 @@ impl Data<'_> {
     /// The bytes of a buffer view, checked against its buffer.
     fn view_bytes(&self, view: &gltf::buffer::View<'_>) -> MeshResult<&[u8]> {
         let buffer = &self.buffers[view.buffer().index()];
-        view.offset()
-            .checked_add(view.length())
-            .and_then(|end| buffer.get(view.offset()..end))
-            .ok_or_else(|| {
-                gltf_error(format!(
-                    "bufferViews[{}]: bytes {}..{} lie outside buffers[{}] ({} bytes)",
-                    view.index(),
-                    view.offset(),
-                    view.offset().saturating_add(view.length()),
-                    view.buffer().index(),
-                    buffer.len()
-                ))
-            })
+        view_within(view, buffer.len()).map(|range| &buffer[range])
     }
+}
+
+/// The byte range of `view` in its buffer, checked against the buffer's `length`.
+///
+/// # Errors
+/// A view that reaches past its buffer.
+pub(super) fn view_within(
+    view: &gltf::buffer::View<'_>,
+    length: usize,
+) -> MeshResult<std::ops::Range<usize>> {
+    view.offset()
+        .checked_add(view.length())
+        .filter(|&end| end <= length)
+        .map(|end| view.offset()..end)
+        .ok_or_else(|| {
+            gltf_error(format!(
+                "bufferViews[{}]: bytes {}..{} lie outside buffers[{}] ({length} bytes)",
+                view.index(),
+                view.offset(),
+                view.offset().saturating_add(view.length()),
+                view.buffer().index(),
+            ))
+        })
+}
+
+/// The stride of `accessor`'s elements in `view`, once they are checked to fit in its
+/// `length` bytes.
+///
+/// # Errors
+/// A stride below the element size, or elements that reach past the view.
+pub(super) fn stride_within(
+    accessor: &Accessor<'_>,
+    view: &gltf::buffer::View<'_>,
+    length: usize,
+) -> MeshResult<usize> {
+    let (a, count, size) = (accessor.index(), accessor.count(), accessor.size());
+    let stride = view.stride().unwrap_or(size);
+    if stride < size {
+        return Err(gltf_error(format!(
+            "accessors[{a}]: bufferViews[{}].byteStride {stride} is smaller than the element \
+             size {size}",
+            view.index()
+        )));
+    }
+    let start = accessor.offset();
+    let needed = stride
+        .checked_mul(count.saturating_sub(1))
+        .and_then(|n| n.checked_add(start))
+        .and_then(|n| n.checked_add(size));
+    if needed.is_none_or(|n| n > length) {
+        return Err(gltf_error(format!(
+            "accessors[{a}]: {count} elements of {size} bytes (stride {stride}, offset \
+             {start}) do not fit in bufferViews[{}] ({length} bytes)",
+            view.index(),
+        )));
+    }
+    Ok(stride)
 }
 
 pub(super) fn type_error(accessor: &Accessor<'_>, what: &str, expected: &str) -> MeshError {

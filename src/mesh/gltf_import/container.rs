@@ -206,12 +206,26 @@ fn lookup<'v>(root: &'v gltf::json::Value, path: &str) -> Option<&'v gltf::json:
     Some(value)
 }
 
+/// Every buffer of `document`: the GLB `bin` chunk, `data:` URIs, and files in `base_dir`.
+/// The external files' declared lengths and the glTF's own `file_bytes` are summed against
+/// [`LoadLimits::file_bytes`] before any is read (a file naming one large buffer many times
+/// would otherwise read it as often).
 pub(super) fn load_buffers<'a>(
     document: &Document,
+    file_bytes: usize,
     bin: Option<&'a [u8]>,
     base_dir: Option<&Path>,
     limits: &LoadLimits,
 ) -> MeshResult<Vec<Cow<'a, [u8]>>> {
+    let external = document
+        .buffers()
+        .filter(
+            |b| matches!(b.source(), gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:")),
+        )
+        .fold(file_bytes as u64, |sum, b| {
+            sum.saturating_add(b.length() as u64)
+        });
+    LoadLimits::check("file_bytes", external, limits.file_bytes)?;
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let i = buffer.index();

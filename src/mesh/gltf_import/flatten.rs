@@ -2,6 +2,7 @@
 
 use super::accessors::{Data, type_error};
 use super::container::{gltf_error, semantic_name};
+use super::plan::Plan;
 use super::scene::{GltfSkinInfo, Instance};
 use crate::mesh::tangents::mikktspace;
 use crate::mesh::{
@@ -86,6 +87,9 @@ pub(super) struct Builder {
     joints_unmappable: bool,
     primitives: usize,
     morph_target_primitives: usize,
+    /// The vertices the whole import will have (its [`Plan`]), which a column gets room for
+    /// when it starts.
+    planned_vertices: usize,
 }
 
 /// Per skin, the map from its joint indices to those of the primary skin (`None` for every
@@ -118,9 +122,22 @@ pub(super) fn joint_maps(skins: &[GltfSkinInfo], primary: Option<usize>) -> Join
 }
 
 impl Builder {
-    pub(super) fn new(skins: &[GltfSkinInfo], instances: &[Instance<'_>]) -> Self {
+    /// A builder of the whole scene, with room for all of the `plan` (so that no column
+    /// grows by doubling, which would hold up to three times its size while it moves).
+    pub(super) fn new(skins: &[GltfSkinInfo], instances: &[Instance<'_>], plan: &Plan) -> Self {
         let primary = instances.iter().filter_map(|i| i.skin).min();
-        Self::with_joint_maps(skins, Rc::new(joint_maps(skins, primary)))
+        let mut builder = Self::with_joint_maps(skins, Rc::new(joint_maps(skins, primary)));
+        builder.planned_vertices = usize::try_from(plan.vertices).unwrap_or(usize::MAX);
+        let corners = plan.triangles.saturating_mul(3);
+        builder
+            .mesh
+            .positions
+            .reserve_exact(builder.planned_vertices);
+        builder
+            .mesh
+            .indices
+            .reserve_exact(usize::try_from(corners).unwrap_or(usize::MAX));
+        builder
     }
 
     /// A builder whose primary skin's joint maps, [`joint_maps`], are already made (so
@@ -151,6 +168,7 @@ impl Builder {
             joints_unmappable: false,
             primitives: 0,
             morph_target_primitives: 0,
+            planned_vertices: 0,
         }
     }
 
@@ -226,17 +244,7 @@ impl Builder {
             None => None,
         };
         for (semantic, _) in primitive.attributes() {
-            let carried = matches!(
-                semantic,
-                Semantic::Positions
-                    | Semantic::Normals
-                    | Semantic::Tangents
-                    | Semantic::TexCoords(0 | 1)
-                    | Semantic::Colors(0)
-                    | Semantic::Joints(0)
-                    | Semantic::Weights(0)
-            ) || semantic == Semantic::Extras("REGION".to_string());
-            if !carried {
+            if !is_carried(&semantic) {
                 self.dropped.insert(match &semantic {
                     Semantic::Extras(name) => format!("_{name}"),
                     other => semantic_name(other).to_string(),
@@ -322,63 +330,61 @@ impl Builder {
             .positions
             .extend(positions.iter().map(|&p| m.transform_point3(Vec3::from(p))));
 
-        self.any_normals |= normals.is_some();
+        // Each column starts with the first primitive that has its attribute.
+        let room = self.planned_vertices.max(base + vertex_count);
+        let column = Column {
+            base,
+            vertex_count,
+            room,
+        };
         self.all_normals &= normals.is_some();
-        match &normals {
-            Some(n) => self.normals.extend(
-                n.iter()
-                    .map(|&n| (cofactor * Vec3::from(n)).normalize_or_zero()),
-            ),
-            None => self.normals.resize(base + vertex_count, Vec3::ZERO),
-        }
-        self.any_tangents |= tangents.is_some();
-        match &tangents {
-            // A tangent follows the surface like a position difference; a mirroring transform
-            // flips the bitangent's handedness.
-            Some(t) => self.tangents.extend(t.iter().map(|&[x, y, z, w]| {
-                let t = (linear * Vec3::new(x, y, z)).normalize_or_zero();
-                t.extend(if det < 0.0 { -w } else { w })
-            })),
-            None => self.tangents.resize(base + vertex_count, Vec4::ZERO),
-        }
-        self.any_uvs1 |= uvs1.is_some();
-        match &uvs1 {
-            Some(t) => self.uvs1.extend_from_slice(t),
-            None => self.uvs1.resize(base + vertex_count, [0.0; 2]),
-        }
-        self.any_colors |= colors.is_some();
-        match &colors {
-            Some(c) => self.colors.extend_from_slice(c),
-            // Primitives without colours draw as white, as Bevy draws a mesh without them.
-            None => self.colors.resize(base + vertex_count, [1.0; 4]),
-        }
-        self.any_uvs |= uvs.is_some();
-        match &uvs {
-            Some(t) => self.uvs.extend(t.iter().map(|&t| Vec2::from(t))),
-            None => self.uvs.resize(base + vertex_count, Vec2::ZERO),
-        }
-        self.any_weights |= weights.is_some();
-        match &weights {
-            Some(w) => self.weights.extend_from_slice(w),
-            None => self.weights.resize(base + vertex_count, [0.0; 4]),
-        }
-        self.any_joints |= joints.is_some();
-        match &joints {
-            Some(js) => {
-                for j in js {
-                    let mapped = self.map_joints(*j, instance.skin, &at)?;
-                    self.joints.push(mapped);
-                }
-            }
-            None => self.joints.resize(base + vertex_count, [0; 4]),
-        }
-
+        column.append(
+            &mut self.normals,
+            &mut self.any_normals,
+            normals.map(|n| {
+                n.into_iter()
+                    .map(|n| (cofactor * Vec3::from(n)).normalize_or_zero())
+            }),
+            Vec3::ZERO,
+        );
+        // A tangent follows the surface like a position difference; a mirroring transform
+        // flips the bitangent's handedness.
+        column.append(
+            &mut self.tangents,
+            &mut self.any_tangents,
+            tangents.map(|t| {
+                t.into_iter().map(|[x, y, z, w]| {
+                    let t = (linear * Vec3::new(x, y, z)).normalize_or_zero();
+                    t.extend(if det < 0.0 { -w } else { w })
+                })
+            }),
+            Vec4::ZERO,
+        );
+        column.append(&mut self.uvs1, &mut self.any_uvs1, uvs1, [0.0; 2]);
+        // Primitives without colours draw as white, as Bevy draws a mesh without them.
+        column.append(&mut self.colors, &mut self.any_colors, colors, [1.0; 4]);
+        column.append(
+            &mut self.uvs,
+            &mut self.any_uvs,
+            uvs.map(|t| t.into_iter().map(Vec2::from)),
+            Vec2::ZERO,
+        );
+        column.append(&mut self.weights, &mut self.any_weights, weights, [0.0; 4]);
+        let joints = joints
+            .map(|js| {
+                js.into_iter()
+                    .map(|j| self.map_joints(j, instance.skin, &at))
+                    .collect::<MeshResult<Vec<_>>>()
+            })
+            .transpose()?;
+        column.append(&mut self.joints, &mut self.any_joints, joints, [0; 4]);
         let ids = read_region_ids(data, primitive, &at)?;
-        self.any_region_ids |= ids.is_some();
-        match ids {
-            Some(ids) => self.region_ids.extend_from_slice(&ids),
-            None => self.region_ids.resize(base + vertex_count, u32::MAX),
-        }
+        column.append(
+            &mut self.region_ids,
+            &mut self.any_region_ids,
+            ids,
+            u32::MAX,
+        );
 
         let flip = det < 0.0;
         self.mesh.indices.reserve(triangles.len() * 3);
@@ -475,6 +481,56 @@ impl Builder {
             region_ids: self.any_region_ids.then_some(self.region_ids),
         }
     }
+}
+
+/// Where one primitive's vertices go in the attribute columns.
+struct Column {
+    /// The vertices of the primitives before it.
+    base: usize,
+    /// Its vertices.
+    vertex_count: usize,
+    /// Room a column gets when it starts: the vertices of the whole import.
+    room: usize,
+}
+
+impl Column {
+    /// Appends the primitive's `values` of one attribute to `column`, or `fill` for each
+    /// vertex when it has none. A column stays empty until some primitive has the attribute
+    /// (`any` turns on); it then gets `fill` for the vertices before, and room for all.
+    fn append<T: Clone>(
+        &self,
+        column: &mut Vec<T>,
+        any: &mut bool,
+        values: Option<impl IntoIterator<Item = T>>,
+        fill: T,
+    ) {
+        match values {
+            Some(values) => {
+                if !*any {
+                    *any = true;
+                    column.reserve_exact(self.room);
+                    column.resize(self.base, fill);
+                }
+                column.extend(values);
+            }
+            None if *any => column.resize(self.base + self.vertex_count, fill),
+            None => {}
+        }
+    }
+}
+
+/// Whether the importer reads an attribute into the mesh (the others are dropped, by name).
+pub(super) fn is_carried(semantic: &Semantic) -> bool {
+    matches!(
+        semantic,
+        Semantic::Positions
+            | Semantic::Normals
+            | Semantic::Tangents
+            | Semantic::TexCoords(0 | 1)
+            | Semantic::Colors(0)
+            | Semantic::Joints(0)
+            | Semantic::Weights(0)
+    ) || matches!(semantic, Semantic::Extras(name) if name == "REGION")
 }
 
 /// Turns a primitive's index list into triangles (`TRIANGLES`, `TRIANGLE_STRIP` or

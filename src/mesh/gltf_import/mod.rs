@@ -14,6 +14,7 @@
 mod accessors;
 mod container;
 mod flatten;
+mod plan;
 mod scene;
 
 pub use flatten::GltfImport;
@@ -26,6 +27,7 @@ use super::{LoadLimits, MeshResult};
 use accessors::Data;
 use container::{gltf_error, load_buffers, parse_document, split_glb};
 use flatten::Builder;
+use plan::Plan;
 use scene::{collect_instances, read_skin};
 use std::collections::HashMap;
 use std::path::Path;
@@ -96,9 +98,11 @@ pub fn load_gltf_slice_with_limits(
     limits: &LoadLimits,
 ) -> MeshResult<GltfImport> {
     LoadLimits::check("file_bytes", bytes.len() as u64, limits.file_bytes)?;
-    let (document, data, skins) = open(bytes, base_dir, limits)?;
+    let (document, bin) = parse(bytes)?;
     let instances = collect_instances(&document)?;
-    let mut builder = Builder::new(&skins, &instances);
+    let plan = Plan::check(&document, instances.iter().map(|i| i.mesh.clone()), limits)?;
+    let (data, skins) = load(&document, bytes.len(), bin, base_dir, limits)?;
+    let mut builder = Builder::new(&skins, &instances, &plan);
     for instance in &instances {
         for primitive in instance.mesh.primitives() {
             builder.add_primitive(&data, &primitive, instance)?;
@@ -109,13 +113,8 @@ pub fn load_gltf_slice_with_limits(
     Ok(import)
 }
 
-/// The document, its buffers and its skins (read first: a file may be nothing but a broken
-/// skin).
-fn open<'a>(
-    bytes: &'a [u8],
-    base_dir: Option<&Path>,
-    limits: &LoadLimits,
-) -> MeshResult<(gltf::Document, Data<'a>, Vec<GltfSkinInfo>)> {
+/// The document, and the GLB `BIN` chunk if there is one.
+fn parse(bytes: &[u8]) -> MeshResult<(gltf::Document, Option<&[u8]>)> {
     let (json, bin) = if bytes.starts_with(b"glTF") {
         split_glb(bytes)?
     } else if bytes.is_empty() {
@@ -125,14 +124,27 @@ fn open<'a>(
     };
     // Some exporters pad the JSON chunk with NULs instead of spaces; tolerate that.
     let end = json.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
-    let document = parse_document(&json[..end])?;
-    let buffers = load_buffers(&document, bin, base_dir, limits)?;
+    Ok((parse_document(&json[..end])?, bin))
+}
+
+/// The document's buffers (the file of `file_bytes` and its external buffers within
+/// [`LoadLimits::file_bytes`] together) and its skins, read first: a file may be nothing but
+/// a broken skin. Call it once the [`Plan`] has passed, so that nothing is read for a file
+/// over a limit.
+fn load<'a>(
+    document: &gltf::Document,
+    file_bytes: usize,
+    bin: Option<&'a [u8]>,
+    base_dir: Option<&Path>,
+    limits: &LoadLimits,
+) -> MeshResult<(Data<'a>, Vec<GltfSkinInfo>)> {
+    let buffers = load_buffers(document, file_bytes, bin, base_dir, limits)?;
     let data = Data::new(buffers, *limits);
     let skins = document
         .skins()
         .map(|skin| read_skin(&data, &skin))
         .collect::<MeshResult<Vec<_>>>()?;
-    Ok((document, data, skins))
+    Ok((data, skins))
 }
 
 /// One triangle primitive of a glTF file, on its own, in its mesh's space: what Bevy's glTF
@@ -167,7 +179,10 @@ pub fn load_gltf_primitives_with_limits(
     limits: &LoadLimits,
 ) -> MeshResult<(Vec<GltfPrimitive>, Vec<GltfSkinInfo>)> {
     let bytes = limits.read_file(path)?;
-    let (document, data, skins) = open(&bytes, path.parent(), limits)?;
+    let (document, bin) = parse(&bytes)?;
+    // Each mesh is read once, whatever the nodes that show it.
+    Plan::check(&document, document.meshes(), limits)?;
+    let (data, skins) = load(&document, bytes.len(), bin, path.parent(), limits)?;
     let instances = collect_instances(&document)?;
     let mut out = Vec::new();
     // The skin of the first node showing each mesh, and the joint maps per primary skin,
