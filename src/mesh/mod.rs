@@ -28,8 +28,10 @@ pub use gltf_import::{
     load_gltf_with_limits,
 };
 pub use limits::LoadLimits;
-pub use obj::{MAX_CONCAVE_CORNERS, load_obj, parse_obj, write_obj, write_obj_groups};
-pub use ply::{load_ply, parse_ply};
+pub use obj::{
+    MAX_CONCAVE_CORNERS, load_obj, parse_obj, parse_obj_with_limits, write_obj, write_obj_groups,
+};
+pub use ply::{load_ply, parse_ply, parse_ply_with_limits};
 pub use weld::{WeldMap, weld_positions, weld_positions_within};
 
 use glam::{Vec2, Vec3, Vec4};
@@ -443,8 +445,10 @@ impl IndexedMesh {
             .map(str::to_ascii_lowercase)
             .unwrap_or_default();
         let mut mesh = match ext.as_str() {
-            "obj" => parse_obj(&String::from_utf8_lossy(&limits.read_file(path)?))?,
-            "ply" => parse_ply(&limits.read_file(path)?)?,
+            "obj" => {
+                parse_obj_with_limits(&String::from_utf8_lossy(&limits.read_file(path)?), limits)?
+            }
+            "ply" => parse_ply_with_limits(&limits.read_file(path)?, limits)?,
             // The glTF importer validates already and keeps its own report.
             "gltf" | "glb" => {
                 let import = load_gltf_with_limits(path, limits)?;

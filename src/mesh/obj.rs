@@ -7,7 +7,7 @@
 //! vertices therefore share one position, which is what the simplifier expects (see
 //! [`weld_positions`](super::weld_positions)).
 
-use super::{IndexedMesh, MeshError, MeshResult};
+use super::{IndexedMesh, LoadLimits, MeshError, MeshResult};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::io::{self, BufWriter, Write};
@@ -25,15 +25,16 @@ struct Corner {
     vn: u32,
 }
 
-/// Reads and parses an OBJ file; see [`parse_obj`].
+/// Reads and parses an OBJ file within the default [`LoadLimits`]; see [`parse_obj`].
 ///
 /// Bytes that are not UTF-8 (in comments or material names, say) are replaced, not rejected.
 ///
 /// # Errors
-/// [`MeshError::Io`] when the file cannot be read, otherwise the errors of [`parse_obj`].
+/// [`MeshError::Io`] when the file cannot be read, otherwise the errors of
+/// [`parse_obj_with_limits`].
 pub fn load_obj(path: &Path) -> MeshResult<IndexedMesh> {
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    parse_obj(&String::from_utf8_lossy(&bytes))
+    let limits = LoadLimits::default();
+    parse_obj_with_limits(&String::from_utf8_lossy(&limits.read_file(path)?), &limits)
 }
 
 /// Parses OBJ text into an indexed triangle mesh.
@@ -49,10 +50,13 @@ pub fn load_obj(path: &Path) -> MeshResult<IndexedMesh> {
 ///
 /// The mesh is not validated; call [`IndexedMesh::validate`] before using it.
 ///
+/// Parsed within the default [`LoadLimits`]; see [`parse_obj_with_limits`].
+///
 /// # Errors
 /// [`MeshError::Parse`] naming the line of a malformed statement, a non-finite number, a face
 /// with fewer than three corners, a concave face of more than [`MAX_CONCAVE_CORNERS`]
-/// corners, or an index that is zero or refers to no vertex.
+/// corners, or an index that is zero or refers to no vertex; [`MeshError::LimitExceeded`] as
+/// [`parse_obj_with_limits`].
 ///
 /// # Example
 /// ```
@@ -64,6 +68,45 @@ pub fn load_obj(path: &Path) -> MeshResult<IndexedMesh> {
 /// # Ok::<(), bevy_aslod::mesh::MeshError>(())
 /// ```
 pub fn parse_obj(text: &str) -> MeshResult<IndexedMesh> {
+    parse_obj_with_limits(text, &LoadLimits::default())
+}
+
+/// [`parse_obj`] within `limits`: a first pass counts the `v`, `vt` and `vn` lines (each
+/// list at most [`vertices`](LoadLimits::vertices)) and the triangles the faces make (at
+/// most [`triangles`](LoadLimits::triangles)) before anything is stored.
+///
+/// # Errors
+/// As [`parse_obj`], and [`MeshError::LimitExceeded`] naming the limit the text exceeds.
+///
+/// # Example
+/// ```
+/// use bevy_aslod::mesh::{LoadLimits, MeshError, parse_obj_with_limits};
+///
+/// let limits = LoadLimits { triangles: 1, ..LoadLimits::default() };
+/// let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+/// let e = parse_obj_with_limits(quad, &limits).unwrap_err();
+/// assert!(matches!(e, MeshError::LimitExceeded { limit: "triangles", value: 2, .. }));
+/// ```
+pub fn parse_obj_with_limits(text: &str, limits: &LoadLimits) -> MeshResult<IndexedMesh> {
+    let mut counts = [0u64; 3];
+    let mut triangle_count = 0u64;
+    for raw in lines(text) {
+        let content = raw.split_once('#').map_or(raw, |(before, _)| before);
+        let mut tokens = content.split_whitespace();
+        match tokens.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            // A face of n corners is n − 2 triangles (one with fewer is an error below).
+            Some("f") => triangle_count += (tokens.count() as u64).saturating_sub(2),
+            _ => {}
+        }
+    }
+    for count in counts {
+        LoadLimits::check("vertices", count, limits.vertices)?;
+    }
+    LoadLimits::check("triangles", triangle_count, limits.triangles)?;
+
     let mut positions: Vec<Vec3> = Vec::new();
     let mut texcoords: Vec<Vec2> = Vec::new();
     let mut normals: Vec<Vec3> = Vec::new();
@@ -131,7 +174,7 @@ pub fn parse_obj(text: &str) -> MeshResult<IndexedMesh> {
             }
         }
     }
-    let mut triangles: Vec<[Corner; 3]> = Vec::with_capacity(corners.len());
+    let mut triangles: Vec<[Corner; 3]> = Vec::with_capacity(triangle_count as usize);
     for (range, line) in &faces {
         let face = &corners[range.clone()];
         let points: Vec<Vec3> = face.iter().map(|c| positions[c.v as usize]).collect();

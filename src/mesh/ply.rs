@@ -7,22 +7,26 @@
 //! for any of these, so integer coordinates and `uint` indices are fine.
 //!
 //! The parser never trusts a count from the header: it allocates only as data arrives, and a
-//! file that ends early gives an error naming the element and the line or byte.
+//! file that ends early gives an error naming the element and the line or byte. A header
+//! whose `vertex` count is over [`LoadLimits::vertices`] is refused before any data is read,
+//! and faces stop at [`LoadLimits::triangles`] as they are read.
 
-use super::{IndexedMesh, MeshError, MeshResult};
+use super::{IndexedMesh, LoadLimits, MeshError, MeshResult};
 use glam::{Vec2, Vec3};
 use std::path::Path;
 
-/// Reads and parses a PLY file; see [`parse_ply`].
+/// Reads and parses a PLY file within the default [`LoadLimits`]; see [`parse_ply`].
 ///
 /// # Errors
-/// [`MeshError::Io`] when the file cannot be read, otherwise the errors of [`parse_ply`].
+/// [`MeshError::Io`] when the file cannot be read, otherwise the errors of
+/// [`parse_ply_with_limits`].
 pub fn load_ply(path: &Path) -> MeshResult<IndexedMesh> {
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    parse_ply(&bytes)
+    let limits = LoadLimits::default();
+    parse_ply_with_limits(&limits.read_file(path)?, &limits)
 }
 
-/// Parses a PLY file held in memory.
+/// Parses a PLY file held in memory, within the default [`LoadLimits`] (see
+/// [`parse_ply_with_limits`]).
 ///
 /// ASCII data holds one element instance per line. Faces are fan-triangulated. Triangle strips are split at `-1` restart markers and turned
 /// into triangles of alternating winding, as strips are drawn; triangles of a strip that
@@ -36,7 +40,7 @@ pub fn load_ply(path: &Path) -> MeshResult<IndexedMesh> {
 /// or is not a number (naming the element, and the line or byte), an ASCII line with more
 /// values than its element's properties, a property declared twice, a vertex element without
 /// `x`, `y` and `z`, or a face index that is not a whole number, is negative or refers to no
-/// vertex.
+/// vertex; [`MeshError::LimitExceeded`] as [`parse_ply_with_limits`].
 ///
 /// # Example
 /// ```
@@ -50,7 +54,35 @@ pub fn load_ply(path: &Path) -> MeshResult<IndexedMesh> {
 /// # Ok::<(), bevy_aslod::mesh::MeshError>(())
 /// ```
 pub fn parse_ply(bytes: &[u8]) -> MeshResult<IndexedMesh> {
+    parse_ply_with_limits(bytes, &LoadLimits::default())
+}
+
+/// [`parse_ply`] within `limits`: the header's `vertex` count is checked against
+/// [`vertices`](LoadLimits::vertices) before any data is read, and the triangles against
+/// [`triangles`](LoadLimits::triangles) as each face or strip is read.
+///
+/// # Errors
+/// As [`parse_ply`], and [`MeshError::LimitExceeded`] naming the limit the file exceeds.
+///
+/// # Example
+/// ```
+/// use bevy_aslod::mesh::{LoadLimits, MeshError, parse_ply_with_limits};
+///
+/// // Four thousand million vertices named in a header of a hundred bytes.
+/// let ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n\
+///     property float x\nproperty float y\nproperty float z\nend_header\n";
+/// let e = parse_ply_with_limits(ply, &LoadLimits::default()).unwrap_err();
+/// assert!(matches!(e, MeshError::LimitExceeded { limit: "vertices", .. }));
+/// ```
+pub fn parse_ply_with_limits(bytes: &[u8], limits: &LoadLimits) -> MeshResult<IndexedMesh> {
     let header = parse_header(bytes)?;
+    for element in header
+        .elements
+        .iter()
+        .filter(|e| e.name == "vertex" && !e.properties.is_empty())
+    {
+        LoadLimits::check("vertices", element.count as u64, limits.vertices)?;
+    }
     let body = &bytes[header.body_start..];
     let mut cursor = match header.format {
         Format::Ascii => Cursor::Ascii {
@@ -68,7 +100,7 @@ pub fn parse_ply(bytes: &[u8]) -> MeshResult<IndexedMesh> {
 
     let mut out = Collected::default();
     for element in &header.elements {
-        read_element(element, &mut cursor, &mut out)?;
+        read_element(element, &mut cursor, &mut out, limits)?;
     }
     out.into_mesh()
 }
@@ -495,7 +527,12 @@ impl Collected {
     }
 }
 
-fn read_element(element: &Element, cursor: &mut Cursor<'_>, out: &mut Collected) -> MeshResult<()> {
+fn read_element(
+    element: &Element,
+    cursor: &mut Cursor<'_>,
+    out: &mut Collected,
+    limits: &LoadLimits,
+) -> MeshResult<()> {
     // An element with no properties has no data, whatever its count says.
     if element.properties.is_empty() {
         return Ok(());
@@ -573,6 +610,8 @@ fn read_element(element: &Element, cursor: &mut Cursor<'_>, out: &mut Collected)
                         Role::StripIndices => push_strip(&list, instance, out),
                         _ => {}
                     }
+                    let triangles = out.sources.len() as u64;
+                    LoadLimits::check("triangles", triangles, limits.triangles)?;
                 }
             }
         }
