@@ -844,11 +844,11 @@ fn load_limits_hold_for_mrm_files() {
     ] {
         assert_eq!(limit_of(file, limits), expected);
     }
-    // At the file's own counts, it reads.
+    // At the file's own counts, it reads; the limits hold for all its assets together.
     let exact = LoadLimits {
         keys: 2,
         file_bytes: twice.len() as u64,
-        vertices,
+        vertices: 2 * vertices,
         joints: 10,
         ..defaults
     };
@@ -856,6 +856,11 @@ fn load_limits_hold_for_mrm_files() {
         mrm::read_with_limits(&twice, &exact).unwrap().meshes.len(),
         2
     );
+    let one_asset = LoadLimits {
+        vertices,
+        ..exact
+    };
+    assert_eq!(limit_of(&twice, one_asset), "vertices");
     let e = mrm::read_with_limits(
         &twice,
         &LoadLimits {

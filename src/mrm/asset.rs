@@ -246,6 +246,14 @@ pub(super) fn read(bytes: &[u8], limits: &LoadLimits) -> Result<MrmFile, MrmErro
     let aset = section(&sections, b"ASET")?;
     let mut at = 0u64;
     let mut meshes = Vec::with_capacity(keys.len());
+    // The limits hold for the whole file: every asset's vertices, triangles and decoded bytes
+    // together.
+    let mut tally = Tally {
+        limits,
+        vertices: 0,
+        triangles: 0,
+        decoded: 0,
+    };
     for (key, length) in keys {
         let end = at
             .checked_add(length)
@@ -254,7 +262,10 @@ pub(super) fn read(bytes: &[u8], limits: &LoadLimits) -> Result<MrmFile, MrmErro
             return Err(r.invalid(0, "the entries' lengths exceed the ASET section"));
         };
         let slice = &aset.bytes[at as usize..end as usize];
-        meshes.push((key, read_entry(slice, aset.offset + at, version, limits)?));
+        meshes.push((
+            key,
+            read_entry(slice, aset.offset + at, version, &mut tally)?,
+        ));
         at = end;
     }
     if at != aset.bytes.len() as u64 {
@@ -372,8 +383,9 @@ fn read_entry(
     bytes: &[u8],
     base: u64,
     version: u32,
-    limits: &LoadLimits,
+    tally: &mut Tally<'_>,
 ) -> Result<BakedMesh, MrmError> {
+    let limits = tally.limits;
     let sections = container::read(bytes, base, version, &ENTRY_SECTIONS)?;
     let mut r = Reader::new(section(&sections, b"HEAD")?);
     let n = r.u32()? as usize;
@@ -383,7 +395,8 @@ fn read_entry(
     if has_skin > 1 || has_variable > 1 {
         return Err(r.invalid(4, "unknown flags"));
     }
-    within("vertices", n, limits.vertices)?;
+    tally.vertices = tally.vertices.saturating_add(n);
+    within("vertices", tally.vertices, limits.vertices)?;
     let present = |tag: &[u8; 4]| sections.iter().any(|s| &s.tag == tag);
     if present(b"SKIN") != (has_skin != 0) || present(b"VARI") != (has_variable != 0) {
         return Err(r.invalid(4, "a section is missing or present against the flags"));
@@ -433,12 +446,7 @@ fn read_entry(
     let lengths = rr.items::<8, _>(region_count, u64::from_le_bytes)?;
     let mut at = rr.offset() - rgns.offset;
     let mut regions = Vec::with_capacity(region_count);
-    let mut tally = Tally {
-        limits,
-        vertex_bytes: source.memory_bytes() / n.max(1),
-        triangles: 0,
-        decoded: 0,
-    };
+    let vertex_bytes = source.memory_bytes() / n.max(1);
     for length in lengths {
         let end = at
             .checked_add(length)
@@ -452,7 +460,8 @@ fn read_entry(
             rgns.offset + at,
             version,
             &source,
-            &mut tally,
+            vertex_bytes,
+            tally,
         )?);
         at = end;
     }
@@ -514,20 +523,22 @@ fn read_entry(
     })
 }
 
-/// What an asset's regions ask for so far, against the limits.
+/// What a file's assets ask for so far, against the limits: their source vertices, and
+/// their regions' triangles and copied vertices. (What else an asset holds, records, lists
+/// and view data, is read from bytes of the file of about its size.)
 struct Tally<'a> {
     limits: &'a LoadLimits,
-    /// Bytes of one source vertex (each region copies its vertices from the source).
-    vertex_bytes: usize,
+    vertices: usize,
     triangles: usize,
     decoded: usize,
 }
 
 impl Tally<'_> {
-    /// Counts a region of `local` vertices and `triangles` triangles, before it is read.
-    fn add(&mut self, local: usize, triangles: usize) -> Result<(), MrmError> {
+    /// Counts a region of `local` vertices of `vertex_bytes` each (a region copies its
+    /// vertices from the source) and `triangles` triangles, before it is read.
+    fn add(&mut self, local: usize, vertex_bytes: usize, triangles: usize) -> Result<(), MrmError> {
         self.triangles = self.triangles.saturating_add(triangles);
-        let bytes = local.saturating_mul(self.vertex_bytes);
+        let bytes = local.saturating_mul(vertex_bytes);
         self.decoded = self.decoded.saturating_add(bytes);
         within("triangles", self.triangles, self.limits.triangles)?;
         within("decoded_bytes", self.decoded, self.limits.decoded_bytes)
@@ -539,6 +550,7 @@ fn read_region(
     base: u64,
     version: u32,
     source: &crate::mesh::IndexedMesh,
+    vertex_bytes: usize,
     tally: &mut Tally<'_>,
 ) -> Result<Region, MrmError> {
     let sections = container::read(bytes, base, version, &REGION_SECTIONS)?;
@@ -562,7 +574,7 @@ fn read_region(
     if own_vertices == 0 || own_vertices > local {
         return Err(r.invalid(4, "the own vertex count is zero or above the local one"));
     }
-    tally.add(local, counts.indices / 3)?;
+    tally.add(local, vertex_bytes, counts.indices / 3)?;
     if !(lo.is_finite() && hi.is_finite()) {
         return Err(r.invalid(32, "the bounds are not finite"));
     }
