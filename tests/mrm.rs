@@ -11,6 +11,7 @@ use bevy_aslod::mrm::{self, BakedMesh, BuildInfo, FORMAT_VERSION, MrmError, MrmF
 use bevy_aslod::multires::{BuildOptions, PolygonCache, ProgressiveMesh};
 use bevy_aslod::refine::VariableMesh;
 use bevy_aslod::regions::{Partition, RegionCaches};
+use common::reseal::{containers, crc32, reseal, table};
 use common::{Rng, grid, sphere, testdata_mesh};
 use glam::Mat4;
 use glam::Vec2;
@@ -269,83 +270,6 @@ fn a_version_2_file_still_loads() {
 
 // ---------------------------------------------------------------------------------------------
 // Damaged files.
-
-/// CRC-32 (IEEE), as the format uses.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = !0u32;
-    for &b in bytes {
-        c ^= u32::from(b);
-        for _ in 0..8 {
-            c = if c & 1 != 0 {
-                0xEDB8_8320 ^ (c >> 1)
-            } else {
-                c >> 1
-            };
-        }
-    }
-    !c
-}
-
-/// The section table of the well-formed container at `start`: (entry offset, data offset,
-/// length), absolute.
-fn table(bytes: &[u8], start: usize) -> Vec<(usize, usize, usize)> {
-    let n = u32::from_le_bytes(bytes[start + 12..start + 16].try_into().unwrap()) as usize;
-    (0..n)
-        .map(|i| {
-            let e = start + 16 + 24 * i;
-            let off = u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap()) as usize;
-            let len = u64::from_le_bytes(bytes[e + 16..e + 24].try_into().unwrap()) as usize;
-            (e, start + off, len)
-        })
-        .collect()
-}
-
-/// Where the containers of a well-formed file start: the file itself and every container
-/// nested in a section (each starts with the magic number), innermost last.
-fn containers(bytes: &[u8]) -> Vec<usize> {
-    (0..bytes.len().saturating_sub(7))
-        .filter(|&i| &bytes[i..i + 8] == b"ASLODMRM")
-        .collect()
-}
-
-/// Makes every checksum of the container at `start` match again (as a file changed on
-/// purpose would), where its table still describes sections inside the file.
-fn reseal_at(bytes: &mut [u8], start: usize) {
-    let Some(n) = bytes
-        .get(start + 12..start + 16)
-        .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as usize)
-    else {
-        return;
-    };
-    let end = start + 16 + 24 * n;
-    if n > 64 || bytes.len() < end + 4 {
-        return;
-    }
-    for i in 0..n {
-        let e = start + 16 + 24 * i;
-        let off = u64::from_le_bytes(bytes[e + 8..e + 16].try_into().unwrap());
-        let len = u64::from_le_bytes(bytes[e + 16..e + 24].try_into().unwrap());
-        if let Some(data) = off
-            .checked_add(start as u64)
-            .and_then(|o| Some((o, o.checked_add(len)?)))
-            .filter(|&(_, x)| x <= bytes.len() as u64)
-            .map(|(o, x)| &bytes[o as usize..x as usize])
-        {
-            let crc = crc32(data);
-            bytes[e + 4..e + 8].copy_from_slice(&crc.to_le_bytes());
-        }
-    }
-    let crc = crc32(&bytes[start..end]);
-    bytes[end..end + 4].copy_from_slice(&crc.to_le_bytes());
-}
-
-/// Reseals every container, the innermost first (a nested container's checksums are part
-/// of its parent's section).
-fn reseal(bytes: &mut [u8], starts: &[usize]) {
-    for &start in starts.iter().rev() {
-        reseal_at(bytes, start);
-    }
-}
 
 /// One damaged copy of `good` (whose containers start at `starts`): what kind of damage,
 /// and the bytes. Every kind but truncations and bit flips picks one container and reseals.
@@ -856,10 +780,7 @@ fn load_limits_hold_for_mrm_files() {
         mrm::read_with_limits(&twice, &exact).unwrap().meshes.len(),
         2
     );
-    let one_asset = LoadLimits {
-        vertices,
-        ..exact
-    };
+    let one_asset = LoadLimits { vertices, ..exact };
     assert_eq!(limit_of(&twice, one_asset), "vertices");
     let e = mrm::read_with_limits(
         &twice,

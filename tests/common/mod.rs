@@ -1,6 +1,8 @@
 //! Mesh generators and topology checks shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod reseal;
+
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};
 use glam::{Vec2, Vec3};
 use proptest::prelude::*;

@@ -98,7 +98,7 @@ pub fn load_gltf_slice_with_limits(
     limits: &LoadLimits,
 ) -> MeshResult<GltfImport> {
     LoadLimits::check("file_bytes", bytes.len() as u64, limits.file_bytes)?;
-    let (document, bin) = parse(bytes)?;
+    let (document, bin) = parse(bytes, limits)?;
     let instances = collect_instances(&document)?;
     let plan = Plan::check(&document, instances.iter().map(|i| i.mesh.clone()), limits)?;
     let (data, skins) = load(&document, bytes.len(), bin, base_dir, limits)?;
@@ -113,8 +113,12 @@ pub fn load_gltf_slice_with_limits(
     Ok(import)
 }
 
-/// The document, and the GLB `BIN` chunk if there is one.
-fn parse(bytes: &[u8]) -> MeshResult<(gltf::Document, Option<&[u8]>)> {
+/// The document, its JSON within [`LoadLimits::json_bytes`], and the GLB `BIN` chunk if
+/// there is one.
+fn parse<'a>(
+    bytes: &'a [u8],
+    limits: &LoadLimits,
+) -> MeshResult<(gltf::Document, Option<&'a [u8]>)> {
     let (json, bin) = if bytes.starts_with(b"glTF") {
         split_glb(bytes)?
     } else if bytes.is_empty() {
@@ -124,6 +128,7 @@ fn parse(bytes: &[u8]) -> MeshResult<(gltf::Document, Option<&[u8]>)> {
     };
     // Some exporters pad the JSON chunk with NULs instead of spaces; tolerate that.
     let end = json.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+    LoadLimits::check("json_bytes", end as u64, limits.json_bytes)?;
     Ok((parse_document(&json[..end])?, bin))
 }
 
@@ -179,7 +184,7 @@ pub fn load_gltf_primitives_with_limits(
     limits: &LoadLimits,
 ) -> MeshResult<(Vec<GltfPrimitive>, Vec<GltfSkinInfo>)> {
     let bytes = limits.read_file(path)?;
-    let (document, bin) = parse(&bytes)?;
+    let (document, bin) = parse(&bytes, limits)?;
     // Each mesh is read once, whatever the nodes that show it.
     Plan::check(&document, document.meshes(), limits)?;
     let (data, skins) = load(&document, bytes.len(), bin, path.parent(), limits)?;
