@@ -1,10 +1,13 @@
 //! Importer tests against the shared test data: real meshes, a skinned character, and the
 //! glTF-Validator's malformed files. Also PLY and OBJ round trips with files written here.
 
+mod common;
+
 use bevy_aslod::mesh::{
     IndexedMesh, LoadLimits, MeshError, load_gltf, load_gltf_slice, load_gltf_slice_with_limits,
     load_obj, load_ply, parse_obj, parse_ply, write_obj, write_obj_groups,
 };
+use common::glb;
 use glam::{Vec2, Vec3};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
@@ -674,28 +677,6 @@ fn degenerate_triangle_file_matches_reality() {
 
 // ---------------------------------------------------------------------------------------------
 // glTF: small files built here
-
-/// Packs JSON and a BIN chunk into a GLB container.
-fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
-    let mut json = json.as_bytes().to_vec();
-    json.resize(json.len().next_multiple_of(4), b' ');
-    let mut bin = bin.to_vec();
-    bin.resize(bin.len().next_multiple_of(4), 0);
-    let total = 12 + 8 + json.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    if !bin.is_empty() {
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
-    }
-    out
-}
 
 /// A unit square in the XY plane (normals +Z) as a GLB, drawn by `indices` in `mode`, with
 /// `nodes` as the node array of the default scene.
