@@ -90,6 +90,26 @@ impl LoadLimits {
         keys: u64::MAX,
     };
 
+    /// Small limits, whose [`peak_bytes`](Self::peak_bytes) is under 400 MB: a 16 MiB file,
+    /// 512 KiB of glTF JSON, 64 MiB decoded, 256 Ki vertices and triangles. For a server
+    /// reading untrusted files on a small machine, and for the fuzz targets, which run under
+    /// `-rss_limit_mb=1024` (`fuzz/`).
+    ///
+    /// ```
+    /// use bevy_aslod::mesh::LoadLimits;
+    ///
+    /// assert!(LoadLimits::SMALL.peak_bytes() < 400_000_000);
+    /// ```
+    pub const SMALL: Self = Self {
+        file_bytes: 16 << 20,
+        json_bytes: 512 << 10,
+        decoded_bytes: 64 << 20,
+        vertices: 1 << 18,
+        triangles: 1 << 18,
+        joints: 65_536,
+        keys: 65_536,
+    };
+
     /// Bytes parsing one byte of glTF JSON may take, at most (about 200 measured).
     pub const JSON_FACTOR: u64 = 256;
     /// Bytes one vertex may take while it is read, at most.
