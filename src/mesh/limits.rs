@@ -30,7 +30,7 @@ use std::path::Path;
 /// 4 Mi (4,194,304) vertices and triangles, 65,536 joints per skin, a million assets in one
 /// `.mrm` file. A server reading files from untrusted sources on a smaller machine lowers
 /// them; a pipeline with larger trusted files raises them (building a progressive mesh then
-/// takes about 500 more bytes per triangle, `docs/performance.md`, "Memory").
+/// takes about 300–550 bytes per triangle, `docs/performance.md`, "Bounded import").
 ///
 /// # Example
 /// ```
