@@ -2,7 +2,7 @@
 
 use super::accessors::{Data, type_error};
 use super::container::{gltf_error, semantic_name};
-use super::plan::Plan;
+use super::plan::{Plan, is_carried};
 use super::scene::{GltfSkinInfo, Instance};
 use crate::mesh::tangents::mikktspace;
 use crate::mesh::{
@@ -517,20 +517,6 @@ impl Column {
             None => {}
         }
     }
-}
-
-/// Whether the importer reads an attribute into the mesh (the others are dropped, by name).
-pub(super) fn is_carried(semantic: &Semantic) -> bool {
-    matches!(
-        semantic,
-        Semantic::Positions
-            | Semantic::Normals
-            | Semantic::Tangents
-            | Semantic::TexCoords(0 | 1)
-            | Semantic::Colors(0)
-            | Semantic::Joints(0)
-            | Semantic::Weights(0)
-    ) || matches!(semantic, Semantic::Extras(name) if name == "REGION")
 }
 
 /// Turns a primitive's index list into triangles (`TRIANGLES`, `TRIANGLE_STRIP` or

@@ -2,7 +2,6 @@
 //! a file over a [`LoadLimits`] is refused before anything its counts name is allocated.
 
 use super::accessors::{stride_within, view_within};
-use super::flatten::is_carried;
 use crate::mesh::{LoadLimits, MeshResult};
 use gltf::Accessor;
 use gltf::Document;
@@ -70,7 +69,7 @@ impl Plan {
         Ok(())
     }
 
-    /// Counts one primitive as [`Builder::add_primitive`](super::flatten::Builder) reads it.
+    /// Counts one primitive as the flattening builder reads it.
     ///
     /// # Errors
     /// As [`decode`](Self::decode).
@@ -112,4 +111,18 @@ impl Plan {
         self.triangles = self.triangles.saturating_add(triangles);
         Ok(())
     }
+}
+
+/// Whether the importer reads an attribute into the mesh (the others are dropped, by name).
+pub(super) fn is_carried(semantic: &Semantic) -> bool {
+    matches!(
+        semantic,
+        Semantic::Positions
+            | Semantic::Normals
+            | Semantic::Tangents
+            | Semantic::TexCoords(0 | 1)
+            | Semantic::Colors(0)
+            | Semantic::Joints(0)
+            | Semantic::Weights(0)
+    ) || matches!(semantic, Semantic::Extras(name) if name == "REGION")
 }
