@@ -416,6 +416,8 @@ fn real_files_stay_within_the_documented_bound() {
         text += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
     }
     std::fs::write(&ply, text).unwrap();
+    let embedded = dir.join("cow.gltf");
+    std::fs::write(&embedded, embedded_gltf(&mesh)).unwrap();
     let mut files: Vec<String> = [
         "textured/FlightHelmet.glb",
         "textured/WaterBottle.glb",
@@ -428,6 +430,7 @@ fn real_files_stay_within_the_documented_bound() {
     .map(|f| format!("{data}/{f}"))
     .collect();
     files.push(ply.display().to_string());
+    files.push(embedded.display().to_string());
     for file in &files {
         let read = |limits: &LoadLimits| {
             IndexedMesh::load_with_limits(file, limits)
@@ -452,6 +455,59 @@ fn real_files_stay_within_the_documented_bound() {
     };
     check_bound("cow, baked .mrm", &read);
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `mesh` as a `.gltf` whose one buffer is a base64 `data:` URI (positions, then indices).
+fn embedded_gltf(mesh: &IndexedMesh) -> String {
+    let mut bin: Vec<u8> = mesh
+        .positions
+        .iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let positions = bin.len();
+    bin.extend(mesh.indices.iter().flat_map(|i| i.to_le_bytes()));
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((glam::Vec3::MAX, glam::Vec3::MIN), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":{},"type":"VEC3","min":{:?},"max":{:?}}},
+          {{"bufferView":1,"componentType":5125,"count":{},"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteLength":{positions}}},{{"buffer":0,"byteOffset":{positions},"byteLength":{}}}],
+        "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
+        mesh.positions.len(),
+        lo.to_array(),
+        hi.to_array(),
+        mesh.indices.len(),
+        bin.len() - positions,
+        bin.len(),
+        base64(&bin)
+    )
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2]);
+        for k in 0..4 {
+            out.push(if k <= chunk.len() {
+                ALPHABET[(n >> (18 - 6 * k) & 63) as usize] as char
+            } else {
+                '='
+            });
+        }
+    }
+    out
 }
 
 fn check_bound(name: &str, read: &dyn Fn(&LoadLimits) -> Result<(), Refusal>) {

@@ -16,17 +16,18 @@ use std::path::Path;
 /// # Peak memory
 /// A read within the limits allocates at most [`peak_bytes`](Self::peak_bytes):
 ///
-/// `file_bytes + 256 × json_bytes + decoded_bytes + 128 B × vertices + 512 B × triangles`
+/// `3 × file_bytes + 256 × json_bytes + decoded_bytes + 128 B × vertices + 512 B × triangles`
 ///
-/// The file is held whole while it is read; a glTF's JSON takes up to about 200 bytes per
-/// byte once parsed (a list of empty objects, measured); a vertex takes at most about 100
+/// The file is held whole while it is read, and a `data:` URI in a glTF's JSON also as the
+/// parsed string and the buffer it decodes to; the rest of the JSON takes up to about 200
+/// bytes per byte once parsed (a list of empty objects, measured); a vertex takes at most about 100
 /// bytes with every attribute; a triangle its indices and, for a glTF primitive with a normal
 /// map and no tangents, MikkTSpace's working memory of about 500 bytes (`tests/limits.rs`
 /// checks the bound on every real test file, and that crafted files over a limit are refused
 /// before they allocate more than a small multiple of their size).
 ///
 /// The defaults keep that bound under 8 GB (6.4 GB) and still read a real game asset of a few
-/// million triangles: a 512 MiB file, 8 MiB of glTF JSON, 1 GiB of decoded attribute data,
+/// million triangles: a 512 MiB file, 4 MiB of glTF JSON, 1 GiB of decoded attribute data,
 /// 4 Mi (4,194,304) vertices and triangles, 65,536 joints per skin, a million assets in one
 /// `.mrm` file. A server reading files from untrusted sources on a smaller machine lowers
 /// them; a pipeline with larger trusted files raises them (building a progressive mesh then
@@ -46,8 +47,9 @@ pub struct LoadLimits {
     /// Bytes of the file, together with every external buffer a glTF names (summed from
     /// their declared lengths before any is read).
     pub file_bytes: u64,
-    /// Bytes of a glTF's JSON (the whole `.gltf`, or a GLB's JSON chunk), checked before it
-    /// is parsed.
+    /// Bytes of a glTF's JSON (the whole `.gltf`, or a GLB's JSON chunk) outside its strings
+    /// of 1 KiB or more, checked before it is parsed. Those (`data:` URIs, mostly) parse
+    /// into one allocation each and count against [`file_bytes`](Self::file_bytes) only.
     pub json_bytes: u64,
     /// Bytes of attribute and index data decoded from a glTF's accessors, in total (an
     /// accessor read once per node that shows its mesh counts each time), and of the vertices
@@ -68,7 +70,7 @@ impl Default for LoadLimits {
     fn default() -> Self {
         Self {
             file_bytes: 512 << 20,
-            json_bytes: 8 << 20,
+            json_bytes: 4 << 20,
             decoded_bytes: 1 << 30,
             vertices: 1 << 22,
             triangles: 1 << 22,
@@ -91,7 +93,7 @@ impl LoadLimits {
     };
 
     /// Small limits, whose [`peak_bytes`](Self::peak_bytes) is under 400 MB: a 16 MiB file,
-    /// 512 KiB of glTF JSON, 64 MiB decoded, 256 Ki vertices and triangles. For a server
+    /// 256 KiB of glTF JSON, 64 MiB decoded, 256 Ki vertices and triangles. For a server
     /// reading untrusted files on a small machine, and for the fuzz targets, which run under
     /// `-rss_limit_mb=1024` (`fuzz/`).
     ///
@@ -102,7 +104,7 @@ impl LoadLimits {
     /// ```
     pub const SMALL: Self = Self {
         file_bytes: 16 << 20,
-        json_bytes: 512 << 10,
+        json_bytes: 256 << 10,
         decoded_bytes: 64 << 20,
         vertices: 1 << 18,
         triangles: 1 << 18,
@@ -122,6 +124,7 @@ impl LoadLimits {
     #[must_use]
     pub const fn peak_bytes(&self) -> u64 {
         self.file_bytes
+            .saturating_mul(3)
             .saturating_add(self.json_bytes.saturating_mul(Self::JSON_FACTOR))
             .saturating_add(self.decoded_bytes)
             .saturating_add(self.vertices.saturating_mul(Self::BYTES_PER_VERTEX))

@@ -128,8 +128,34 @@ fn parse<'a>(
     };
     // Some exporters pad the JSON chunk with NULs instead of spaces; tolerate that.
     let end = json.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
-    LoadLimits::check("json_bytes", end as u64, limits.json_bytes)?;
-    Ok((parse_document(&json[..end])?, bin))
+    let json = &json[..end];
+    LoadLimits::check("json_bytes", structure_bytes(json), limits.json_bytes)?;
+    Ok((parse_document(json)?, bin))
+}
+
+/// Strings at least this long (a `data:` URI's buffer or image, say) parse into one
+/// allocation of about their size, so they count against [`LoadLimits::file_bytes`] only.
+const LONG_STRING: usize = 1024;
+
+/// The bytes of `json` outside its [long strings](LONG_STRING): what parses into many small
+/// allocations, up to [`LoadLimits::JSON_FACTOR`] bytes a byte.
+fn structure_bytes(json: &[u8]) -> u64 {
+    let (mut long, mut start, mut escaped) = (0usize, None, false);
+    for (i, &b) in json.iter().enumerate() {
+        match (start, b) {
+            (Some(_), _) if escaped => escaped = false,
+            (Some(_), b'\\') => escaped = true,
+            (Some(from), b'"') => {
+                if i - from >= LONG_STRING {
+                    long += i - from;
+                }
+                start = None;
+            }
+            (None, b'"') => start = Some(i + 1),
+            _ => {}
+        }
+    }
+    (json.len() - long) as u64
 }
 
 /// The document's buffers (the file of `file_bytes` and its external buffers within
