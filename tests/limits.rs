@@ -521,3 +521,26 @@ fn check_bound(name: &str, read: &dyn Fn(&LoadLimits) -> Result<(), Refusal>) {
         "{name}: {bytes_peak} bytes, above the bound {bound}"
     );
 }
+
+/// `json_bytes` counts what parses into many small allocations: a `data:` URI of a
+/// hundred kilobytes does not count, the objects around it do.
+#[test]
+fn json_bytes_counts_the_structure_not_long_strings() {
+    let embedded = embedded_gltf(&cow());
+    assert!(embedded.len() > 100_000);
+    let limits = LoadLimits {
+        json_bytes: 1_000,
+        ..LoadLimits::default()
+    };
+    let read = |json: &str| load_gltf_slice_with_limits(json.as_bytes(), None, &limits);
+    assert!(read(&embedded).is_ok());
+    let structure = zero_filled(3, 100);
+    assert!(structure.len() > 1_000);
+    assert!(matches!(
+        read(&structure),
+        Err(MeshError::LimitExceeded {
+            limit: "json_bytes",
+            ..
+        })
+    ));
+}
