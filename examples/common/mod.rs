@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod chart;
+pub mod field;
 pub mod stats;
 pub mod terrain;
 pub mod tint;

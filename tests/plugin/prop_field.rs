@@ -11,6 +11,10 @@ use bevy_aslod::plugin::{
 };
 use std::path::{Path, PathBuf};
 
+#[path = "../../examples/common/field.rs"]
+mod field;
+use field::prop_field;
+
 const HELMET: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../shared/testdata/textured/FlightHelmet.glb"
@@ -20,60 +24,6 @@ const HELMET: &str = concat!(
 pub(crate) const SIDE: usize = 20;
 /// Metres between neighbouring copies.
 pub(crate) const SPACING: f32 = 1.5;
-
-/// Writes `prop` (a `.glb`) again into `dir` as `field.glb`, its scene replaced by `side²`
-/// copies on a square grid `spacing` apart in X and Z: each copy a node whose children are
-/// the prop's root nodes again, so every copy shows the same meshes. The binary chunk and
-/// everything else (materials, images) stay as they are.
-pub(crate) fn prop_field(prop: &Path, dir: &Path, side: usize, spacing: f32) -> PathBuf {
-    let bytes = std::fs::read(prop).expect("the prop reads");
-    let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
-    let json_len = word(12);
-    let mut json: serde_json::Value =
-        serde_json::from_slice(&bytes[20..20 + json_len]).expect("GLB JSON");
-    let bin = &bytes[20 + json_len..];
-    let scene = json["scene"].as_u64().unwrap_or(0) as usize;
-    let roots = json["scenes"][scene]["nodes"].clone();
-    let nodes = json["nodes"].as_array_mut().expect("nodes");
-    let mut copies = Vec::new();
-    for i in 0..side * side {
-        let (x, z) = ((i % side) as f32, (i / side) as f32);
-        let half = (side as f32 - 1.0) * 0.5;
-        let first_child = nodes.len() + 1;
-        let children: Vec<usize> = (0..roots.as_array().unwrap().len())
-            .map(|k| first_child + k)
-            .collect();
-        copies.push(nodes.len());
-        nodes.push(serde_json::json!({
-            "name": format!("copy{i}"),
-            "translation": [(x - half) * spacing, 0.0, (z - half) * spacing],
-            "children": children,
-        }));
-        for root in roots.as_array().unwrap() {
-            let mut node = nodes[root.as_u64().unwrap() as usize].clone();
-            node["name"] = format!("copy{i}_{}", node["name"].as_str().unwrap_or("")).into();
-            nodes.push(node);
-        }
-    }
-    json["scenes"] = serde_json::json!([{ "nodes": copies }]);
-    json["scene"] = 0.into();
-    let mut text = serde_json::to_vec(&json).unwrap();
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    let total = 12 + 8 + text.len() + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&text);
-    out.extend_from_slice(bin);
-    let path = dir.join("field.glb");
-    std::fs::write(&path, out).unwrap();
-    path
-}
 
 /// Spawns `field.glb` of `dir`'s asset folder as a `MultiresScene` and runs until it is
 /// converted and every model has its asset; returns the models.
