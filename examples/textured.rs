@@ -97,6 +97,10 @@ struct Args {
     /// triangles of the nearest and the farthest copies.
     #[arg(long, default_value_t = 1)]
     copies: usize,
+    /// `PolygonBudget::min_pixels`: models smaller on screen than this many pixels across
+    /// show nothing and leave their share of the budget to the others (default: off).
+    #[arg(long, default_value_t = 0.0)]
+    min_pixels: f32,
     /// With `--copies`: metres between neighbouring copies.
     #[arg(long, default_value_t = 1.5)]
     spacing: f32,
@@ -164,8 +168,8 @@ fn run(args: &Args) -> Result<(), String> {
     let mut views = Vec::new();
     let mut pictures = Vec::new();
     let mut coarse_attributes = Vec::new();
-    let views = if args.copies > 1 { 1 } else { args.views };
-    for k in 0..views {
+    let view_count = if args.copies > 1 { 1 } else { args.views };
+    for k in 0..view_count {
         let azimuth = std::f32::consts::TAU * k as f32 / args.views as f32 + 0.4;
         let elevation: f32 = if k % 2 == 0 { 0.35 } else { -0.15 };
         let eye = if args.copies > 1 {
@@ -210,6 +214,7 @@ fn run(args: &Args) -> Result<(), String> {
             let mut polygons = stage.app.world_mut().resource_mut::<PolygonBudget>();
             polygons.total = budget;
             polygons.split = args.split;
+            polygons.min_pixels = args.min_pixels;
             let ours = stage.capture_stable()?;
             let counts = stage.source_triangles();
             if k == 0 {
@@ -227,12 +232,14 @@ fn run(args: &Args) -> Result<(), String> {
                 "ours": { "psnr": ours_psnr, "mad": ours_mad, "mean_color": mean_color(&ours) },
             });
             if args.copies > 1 {
-                let (near, far) = stage.copy_triangles(eye, side * side);
+                let (near, far, hidden) = stage.copy_triangles(eye, side * side);
                 row["nearest_copy"] = json!(near);
                 row["farthest_copy"] = json!(far);
+                row["hidden_models"] = json!(hidden);
                 println!(
                     "{} copies at a budget of {budget}: {drawn} triangles drawn, the nearest \
-                     copy {near}, the farthest {far}; PSNR {ours_psnr:.2} dB against plain Bevy",
+                     copy {near}, the farthest {far}, {hidden} models hidden; PSNR \
+                     {ours_psnr:.2} dB against plain Bevy",
                     side * side
                 );
             }
@@ -459,18 +466,21 @@ impl Stage {
             .collect()
     }
 
-    /// The triangles of the copy nearest to `eye` and of the farthest, in a field of
-    /// `copies` copies of one prop: the models sorted by distance, in groups of the models of
-    /// one copy.
-    fn copy_triangles(&mut self, eye: Vec3, copies: usize) -> (usize, usize) {
+    /// The triangles drawn of the copy nearest to `eye` and of the farthest, in a field of
+    /// `copies` copies of one prop (the models sorted by distance, in groups of the models of
+    /// one copy), and how many models are hidden (`PolygonBudget::min_pixels`).
+    fn copy_triangles(&mut self, eye: Vec3, copies: usize) -> (usize, usize, usize) {
         let models = self.models();
         let world = self.app.world();
+        let mut hidden = 0;
         let mut by_distance: Vec<(f32, usize)> = models
             .iter()
             .filter_map(|&m| {
                 let instance = world.get::<MultiresInstance>(m)?;
                 let at = world.get::<GlobalTransform>(m)?.translation();
-                Some((at.distance(eye), instance.triangle_count()))
+                let drawn = drawn_triangles(world, instance);
+                hidden += usize::from(drawn.is_none());
+                Some((at.distance(eye), drawn.unwrap_or(0)))
             })
             .collect();
         by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -480,15 +490,17 @@ impl Stage {
         (
             sum(&by_distance[..per_copy.min(by_distance.len())]),
             sum(&by_distance[last..]),
+            hidden,
         )
     }
 
-    /// The triangles all models show now.
+    /// The triangles all models show now (none for a hidden one).
     fn model_triangles(&self) -> usize {
+        let world = self.app.world();
         self.models()
             .iter()
-            .filter_map(|&m| self.app.world().get::<MultiresInstance>(m))
-            .map(MultiresInstance::triangle_count)
+            .filter_map(|&m| world.get::<MultiresInstance>(m))
+            .filter_map(|i| drawn_triangles(world, i))
             .sum()
     }
 
@@ -942,6 +954,16 @@ fn summary(views: &[serde_json::Value], ratios: &[f64]) -> serde_json::Value {
         "full_detail_median_psnr": common::stats::median(&column(&["full_detail", "psnr"])),
         "ratios": rows,
     })
+}
+
+/// The triangles a model shows, or `None` when every region entity of it is hidden
+/// (`PolygonBudget::min_pixels`).
+fn drawn_triangles(world: &World, instance: &MultiresInstance) -> Option<usize> {
+    let shown = instance
+        .region_entities()
+        .iter()
+        .any(|&r| world.get::<Visibility>(r) != Some(&Visibility::Hidden));
+    shown.then(|| instance.triangle_count())
 }
 
 fn print_table(report: &serde_json::Value) {
