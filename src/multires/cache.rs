@@ -72,6 +72,11 @@ impl<I: CacheIndex> PolygonCache<I> {
         &self.indices[..3 * self.walk.count]
     }
 
+    /// Bytes of the index buffer held.
+    pub(crate) fn index_bytes(&self) -> usize {
+        self.indices.capacity() * size_of::<I>()
+    }
+
     /// The whole index buffer, for regions to resolve their foreign corners in place.
     #[inline]
     pub(crate) fn indices_mut(&mut self) -> &mut [I] {
@@ -150,19 +155,7 @@ impl<I: CacheIndex> PolygonCache<I> {
     /// moving: every count in `from..below`.
     #[inline]
     pub(crate) fn steady_targets(&self, mesh: &ProgressiveMesh) -> (usize, usize) {
-        let Walk { level, count, .. } = self.walk;
-        // Coarser while the count is above the target, down to the base level; finer while
-        // the next level's count is within it, up to full detail.
-        let from = if level + 1 >= mesh.level_count() {
-            0
-        } else {
-            count
-        };
-        let below = match level.checked_sub(1) {
-            Some(step) => count + mesh.records.removed_by(step),
-            None => usize::MAX,
-        };
-        (from, below)
+        steady_targets(&self.walk, mesh)
     }
 
     /// Moves to `level` (clamped to the base level) and returns the triangle count reached.
@@ -178,4 +171,22 @@ impl<I: CacheIndex> PolygonCache<I> {
     pub fn set_max_error(&mut self, mesh: &ProgressiveMesh, error: f32) -> usize {
         self.set_level(mesh, mesh.level_for_error(error))
     }
+}
+
+/// The targets a cache at `walk` answers without moving: every count in `from..below`.
+#[inline]
+pub(crate) fn steady_targets(walk: &Walk, mesh: &ProgressiveMesh) -> (usize, usize) {
+    let Walk { level, count, .. } = *walk;
+    // Coarser while the count is above the target, down to the base level; finer while
+    // the next level's count is within it, up to full detail.
+    let from = if level + 1 >= mesh.level_count() {
+        0
+    } else {
+        count
+    };
+    let below = match level.checked_sub(1) {
+        Some(step) => count + mesh.records.removed_by(step),
+        None => usize::MAX,
+    };
+    (from, below)
 }

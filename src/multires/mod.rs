@@ -55,6 +55,7 @@ pub(crate) mod records;
 
 pub use build::{BuildOptions, CollapseOperator};
 pub use cache::PolygonCache;
+pub(crate) use cache::steady_targets;
 pub use index::CacheIndex;
 
 use crate::mesh::{IndexedMesh, MeshError};

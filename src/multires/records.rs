@@ -432,10 +432,57 @@ impl Layout {
     /// Triangles removed by step `step`.
     #[inline]
     pub(crate) fn removed_by(&self, step: usize) -> usize {
+        self.step(step).2
+    }
+
+    /// Step `step`'s `(corners, pairs, removed)`.
+    #[inline]
+    fn step(&self, step: usize) -> (usize, usize, usize) {
         match self {
-            Self::Narrow(r) => r.step(step).2,
-            Self::Wide(r) => r.step(step).2,
+            Self::Narrow(r) => r.step(step),
+            Self::Wide(r) => r.step(step),
         }
+    }
+
+    /// Moves `state` where [`Records::walk`] would (the finest level with at most
+    /// `triangles` triangles, or the base level), touching no indices: for a cache that
+    /// keeps only its level.
+    pub(crate) fn walk_levels(&self, state: &mut Walk, triangles: usize) {
+        while state.count > triangles && state.level < self.step_count() {
+            self.coarsen_levels(state);
+        }
+        while state.level > 0 && state.count + self.removed_by(state.level - 1) <= triangles {
+            self.refine_levels(state);
+        }
+    }
+
+    /// Moves `state` to `level` (clamped to the base level), touching no indices.
+    pub(crate) fn walk_to_level(&self, state: &mut Walk, level: usize) {
+        let level = level.min(self.step_count());
+        while state.level < level {
+            self.coarsen_levels(state);
+        }
+        while state.level > level {
+            self.refine_levels(state);
+        }
+    }
+
+    /// One step coarser, touching no indices.
+    fn coarsen_levels(&self, state: &mut Walk) {
+        let (corners, pairs, removed) = self.step(state.level);
+        state.corner += corners;
+        state.pair += pairs;
+        state.count -= removed;
+        state.level += 1;
+    }
+
+    /// One step finer, touching no indices.
+    fn refine_levels(&self, state: &mut Walk) {
+        let (corners, pairs, removed) = self.step(state.level - 1);
+        state.corner -= corners;
+        state.pair -= pairs;
+        state.count += removed;
+        state.level -= 1;
     }
 
     /// Every step's vertex pairs `(step, old, new)`: the attribute vertices the step moves

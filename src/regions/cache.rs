@@ -1,7 +1,8 @@
 //! Per-instance state of a [`RegionMesh`]: one polygon cache per region.
 
 use super::RegionMesh;
-use crate::multires::{CacheIndex, PolygonCache, ProgressiveMesh};
+use crate::multires::records::Walk;
+use crate::multires::{CacheIndex, PolygonCache, ProgressiveMesh, steady_targets};
 
 /// One instance's levels of every region of a [`RegionMesh`].
 ///
@@ -36,6 +37,7 @@ impl Steady {
         let (from, below) = match cache {
             Cache::Narrow(c) => c.steady_targets(mesh),
             Cache::Wide(c) => c.steady_targets(mesh),
+            Cache::Levels(walk) => steady_targets(walk, mesh),
         };
         Self {
             count: cache.triangle_count(),
@@ -60,6 +62,8 @@ impl Eq for RegionCaches {}
 enum Cache {
     Narrow(PolygonCache<u16>),
     Wide(PolygonCache<u32>),
+    /// The level alone, no indices ([`RegionCaches::levels_only`]).
+    Levels(Walk),
 }
 
 impl Cache {
@@ -70,11 +74,20 @@ impl Cache {
         }
     }
 
+    /// A region's level alone, at full detail.
+    fn levels(mesh: &ProgressiveMesh) -> Self {
+        Self::Levels(Walk {
+            count: mesh.max_triangles(),
+            ..Walk::default()
+        })
+    }
+
     #[inline]
     fn triangle_count(&self) -> usize {
         match self {
             Self::Narrow(c) => c.triangle_count(),
             Self::Wide(c) => c.triangle_count(),
+            Self::Levels(walk) => walk.count,
         }
     }
 
@@ -83,6 +96,7 @@ impl Cache {
         match self {
             Self::Narrow(c) => c.level(),
             Self::Wide(c) => c.level(),
+            Self::Levels(walk) => walk.level,
         }
     }
 
@@ -91,15 +105,39 @@ impl Cache {
         match self {
             Self::Narrow(c) => c.set_triangle_count(mesh, triangles),
             Self::Wide(c) => c.set_triangle_count(mesh, triangles),
+            Self::Levels(walk) => {
+                mesh.records.walk_levels(walk, triangles);
+                walk.count
+            }
         }
     }
 
-    /// Sets one corner (a local vertex of the region, which fits the cache's type).
+    #[inline]
+    fn set_level(&mut self, mesh: &ProgressiveMesh, level: usize) {
+        match self {
+            Self::Narrow(c) => _ = c.set_level(mesh, level),
+            Self::Wide(c) => _ = c.set_level(mesh, level),
+            Self::Levels(walk) => mesh.records.walk_to_level(walk, level),
+        }
+    }
+
+    /// Sets one corner (a local vertex of the region, which fits the cache's type); a cache
+    /// of levels alone has none.
     #[inline]
     fn set_corner(&mut self, corner: usize, vertex: u32) {
         match self {
             Self::Narrow(c) => c.indices_mut()[corner] = u16::from_u32(vertex),
             Self::Wide(c) => c.indices_mut()[corner] = vertex,
+            Self::Levels(_) => {}
+        }
+    }
+
+    /// Bytes of the index buffer held.
+    fn index_bytes(&self) -> usize {
+        match self {
+            Self::Narrow(c) => c.index_bytes(),
+            Self::Wide(c) => c.index_bytes(),
+            Self::Levels(_) => 0,
         }
     }
 }
@@ -292,6 +330,45 @@ impl RegionCaches {
         }
     }
 
+    /// Every region at full detail, every region dirty, keeping each region's level alone
+    /// and no index buffer: for an instance whose triangles are written elsewhere (the
+    /// plugin's shared level meshes, made from one full set of caches per asset). Levels,
+    /// counts and dirty flags move exactly as [`new`](Self::new)'s do; the `write_*`
+    /// methods panic.
+    #[must_use]
+    pub fn levels_only(mesh: &RegionMesh) -> Self {
+        let caches: Vec<_> = mesh
+            .regions()
+            .iter()
+            .map(|r| Cache::levels(&r.mesh))
+            .collect();
+        let steady = caches
+            .iter()
+            .zip(mesh.regions())
+            .map(|(cache, r)| Steady::of(cache, &r.mesh))
+            .collect();
+        Self {
+            caches,
+            steady,
+            dirty: vec![true; mesh.regions().len()],
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// Whether the caches hold index buffers (made by [`new`](Self::new), not
+    /// [`levels_only`](Self::levels_only)).
+    #[must_use]
+    pub fn holds_indices(&self) -> bool {
+        !matches!(self.caches.first(), Some(Cache::Levels(_)))
+    }
+
+    /// Bytes of index buffers held, over all regions (`0` for
+    /// [`levels_only`](Self::levels_only) caches).
+    #[must_use]
+    pub fn index_bytes(&self) -> usize {
+        self.caches.iter().map(Cache::index_bytes).sum()
+    }
+
     /// Number of regions.
     #[inline]
     #[must_use]
@@ -367,12 +444,35 @@ impl RegionCaches {
             return steady.count;
         }
         let data = &mesh.regions()[region];
-        let cache = &mut self.caches[region];
-        let before = cache.level();
-        let reached = cache.set_triangle_count(&data.mesh, triangles);
+        let before = self.caches[region].level();
+        let reached = self.caches[region].set_triangle_count(&data.mesh, triangles);
+        self.moved(mesh, region, before);
+        reached
+    }
+
+    /// Moves a region to `level` (clamped to its base level), as
+    /// [`set_triangle_count`](Self::set_triangle_count) moves it, and returns the triangle
+    /// count reached: to put these caches where another instance's are.
+    ///
+    /// # Panics
+    /// Panics when `region` is out of range or `mesh` is not the mesh the caches were made
+    /// for.
+    pub fn set_level(&mut self, mesh: &RegionMesh, region: usize, level: usize) -> usize {
+        let data = &mesh.regions()[region];
+        let before = self.caches[region].level();
+        self.caches[region].set_level(&data.mesh, level);
+        self.moved(mesh, region, before);
+        self.steady[region].count
+    }
+
+    /// After region `region` moved from level `before`: its steady targets, its dirty flag,
+    /// and the corners its front events move in other regions.
+    fn moved(&mut self, mesh: &RegionMesh, region: usize, before: usize) {
+        let data = &mesh.regions()[region];
+        let cache = &self.caches[region];
         let after = cache.level();
         if after == before {
-            return reached;
+            return;
         }
         self.steady[region] = Steady::of(cache, &data.mesh);
         self.dirty[region] = true;
@@ -391,7 +491,6 @@ impl RegionCaches {
                 self.dirty[e.region as usize] = true;
             }
         }
-        reached
     }
 
     /// Writes a region's triangles into `out` (cleared first), as indices into the region's
@@ -403,8 +502,8 @@ impl RegionCaches {
     /// area. Returns the number of triangles written.
     ///
     /// # Panics
-    /// Panics when `region` is out of range or `mesh` is not the mesh the caches were made
-    /// for.
+    /// Panics when `region` is out of range, `mesh` is not the mesh the caches were made
+    /// for, or the caches are [`levels_only`](Self::levels_only).
     pub fn write_indices(&mut self, mesh: &RegionMesh, region: usize, out: &mut Vec<u32>) -> usize {
         self.write(mesh, region, out)
     }
@@ -459,6 +558,7 @@ impl RegionCaches {
         match &self.caches[region] {
             Cache::Narrow(cache) => scratch.write(data, mesh.built, cache.indices(), out),
             Cache::Wide(cache) => scratch.write(data, mesh.built, cache.indices(), out),
+            Cache::Levels(_) => panic!("levels-only caches hold no indices to write"),
         }
         self.dirty[region] = false;
         out.len() / 3
@@ -535,6 +635,69 @@ mod tests {
     }
 
     /// A buffer that follows a region up to its full detail grows to at most the full size.
+    #[test]
+    fn levels_only_caches_move_as_full_ones_and_set_level_reaches_their_buffers() {
+        let regions = bumpy_grid_regions(3);
+        let mut full = RegionCaches::new(&regions);
+        let mut lean = RegionCaches::levels_only(&regions);
+        assert!(full.holds_indices() && !lean.holds_indices());
+        assert_eq!(lean.index_bytes(), 0);
+        assert!(full.index_bytes() > 0);
+        let n = regions.regions().len();
+        let mut seed = 0x2545_f491_u64;
+        for _ in 0..3000 {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            let r = (seed >> 33) as usize % n;
+            let max = regions.regions()[r].max_triangles();
+            let target = (seed >> 40) as usize % (max + 2);
+            if (seed >> 20) % 4 == 0 {
+                let level = target % regions.regions()[r].mesh.level_count();
+                assert_eq!(
+                    full.set_level(&regions, r, level),
+                    lean.set_level(&regions, r, level)
+                );
+            } else {
+                assert_eq!(
+                    full.set_triangle_count(&regions, r, target),
+                    lean.set_triangle_count(&regions, r, target)
+                );
+            }
+            for q in 0..n {
+                assert_eq!(full.level(q), lean.level(q));
+                assert_eq!(full.triangle_count(q), lean.triangle_count(q));
+                assert_eq!(full.is_dirty(q), lean.is_dirty(q));
+            }
+            if (seed >> 24) % 16 == 0 {
+                // Another full set of caches, put at the same levels by `set_level` from
+                // wherever it was, writes the same buffers.
+                let mut other = RegionCaches::new(&regions);
+                for q in (0..n).rev() {
+                    other.set_level(&regions, q, (q * 7) % 5);
+                }
+                for q in 0..n {
+                    other.set_level(&regions, q, lean.level(q));
+                }
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                for q in 0..n {
+                    full.write_indices(&regions, q, &mut a);
+                    other.write_indices(&regions, q, &mut b);
+                    assert_eq!(a, b, "region {q}");
+                }
+                for q in 0..n {
+                    lean.mark_written(q);
+                }
+            }
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "levels-only caches hold no indices")]
+    fn levels_only_caches_write_nothing() {
+        let regions = bumpy_grid_regions(2);
+        let mut lean = RegionCaches::levels_only(&regions);
+        lean.write_indices(&regions, 0, &mut Vec::new());
+    }
+
     #[test]
     fn written_buffers_never_outgrow_the_full_detail() {
         let regions = bumpy_grid_regions(2);
