@@ -81,7 +81,9 @@ pub struct Refinement {
 }
 
 impl MultiresInstance {
-    /// The instance's polygon caches (read-only).
+    /// The instance's polygon caches (read-only). A [`SharedLevels`](super::SharedLevels)
+    /// model's keep its regions' levels alone, no index buffers
+    /// ([`RegionCaches::levels_only`]): its level meshes are made once per asset.
     #[inline]
     #[must_use]
     pub fn caches(&self) -> &RegionCaches {

@@ -170,6 +170,10 @@ pub(super) struct SharedMeshes {
     levels: HashMap<LevelKey, AssetId<Mesh>>,
     /// Every level mesh made, with its key, to forget it once Bevy drops it.
     made: HashMap<AssetId<Mesh>, LevelKey>,
+    /// Per asset (by serial), one full set of caches that makes its level meshes: shared
+    /// instances keep their levels alone ([`RegionCaches::levels_only`]), so the index
+    /// buffers are held once per asset, not once per instance.
+    scratch: HashMap<u64, RegionCaches>,
     next_serial: u64,
 }
 
@@ -268,12 +272,17 @@ impl SharedUpload<'_, '_, '_> {
             let handle = match found {
                 Some(handle) => handle,
                 None => {
-                    let mesh = level_mesh(
-                        &instance.regions,
-                        &mut instance.caches,
-                        r,
-                        &mut self.scratch,
-                    );
+                    let regions = &instance.regions;
+                    let caches = self
+                        .table
+                        .scratch
+                        .entry(state.asset.serial)
+                        .or_insert_with(|| RegionCaches::new(regions));
+                    // The region's buffer depends on its dependencies' levels alone.
+                    for &q in &state.asset.dependencies[r] {
+                        caches.set_level(regions, q as usize, instance.caches.level(q as usize));
+                    }
+                    let mesh = level_mesh(regions, caches, r, &mut self.scratch);
                     self.bytes += mesh_bytes(&mesh);
                     let handle = meshes.add(mesh);
                     self.table.levels.insert(key.clone(), handle.id());
@@ -362,8 +371,10 @@ pub(super) fn forget_dropped(
         }
     }
     for event in assets.read() {
-        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
-            table.assets.remove(id);
+        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event
+            && let Some(asset) = table.assets.remove(id)
+        {
+            table.scratch.remove(&asset.serial);
         }
     }
 }

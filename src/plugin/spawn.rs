@@ -132,7 +132,13 @@ pub(super) fn spawn_regions(
         let model_asset = model.0.id();
         let instance = MultiresInstance {
             asset: model_asset,
-            caches: RegionCaches::new(&regions),
+            // A shared model's level meshes are made from its asset's caches: it keeps its
+            // levels alone.
+            caches: if shared.is_some() {
+                RegionCaches::levels_only(&regions)
+            } else {
+                RegionCaches::new(&regions)
+            },
             bounds: asset.bounds(),
             obbs: asset.obbs().clone(),
             curves: asset.error_curves().clone(),

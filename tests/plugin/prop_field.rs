@@ -9,7 +9,6 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodStats, MultiresInstance, MultiresScene, MultiresSceneModels, PolygonBudget,
 };
-use std::path::{Path, PathBuf};
 
 #[path = "../../examples/common/field.rs"]
 mod field;
