@@ -147,6 +147,82 @@ fn shared_instances_hold_mesh_data_bounded_independently_of_their_number() {
 }
 
 #[test]
+fn shared_instances_hold_no_copy_of_the_asset_index_buffer() {
+    // Shared instances keep their levels alone; the asset's caches make the level meshes.
+    let (mut app, models, camera) = scene(50, true, 7_500);
+    walk(&mut app, &models, camera, 6);
+    settle(&mut app);
+    let asset_indices = scene::patch(41).indices.len() * 2;
+    for &m in &models {
+        let caches = app.world().get::<MultiresInstance>(m).unwrap().caches();
+        assert!(!caches.holds_indices());
+        assert_eq!(caches.index_bytes(), 0);
+    }
+    // An instance of its own holds a copy (16-bit here).
+    let (mut app, models, camera) = scene(2, false, 7_500);
+    walk(&mut app, &models, camera, 2);
+    let caches = app
+        .world()
+        .get::<MultiresInstance>(models[0])
+        .unwrap()
+        .caches();
+    assert!(caches.holds_indices());
+    assert!(
+        caches.index_bytes() >= asset_indices,
+        "{}",
+        caches.index_bytes()
+    );
+}
+
+/// Resident memory per extra instance, shared or not, with the camera looking away (no
+/// level mesh made): `cargo test --all-features --test plugin -- --ignored
+/// memory_per_instance --nocapture`. A measurement, not a check.
+#[test]
+#[ignore = "a measurement: run it alone, with --nocapture"]
+fn memory_per_instance() {
+    for shared in [true, false] {
+        let (mut app, models, camera) = scene(1_000, shared, 1_000_000);
+        app.world_mut()
+            .entity_mut(camera)
+            .insert(Transform::from_xyz(-10.0, 15.0, -10.0).looking_to(Vec3::NEG_X, Vec3::Y));
+        for _ in 0..3 {
+            app.update();
+        }
+        let before = super::soak::resident_bytes().unwrap_or(0);
+        let handle = app
+            .world()
+            .get::<MultiresModel>(models[0])
+            .unwrap()
+            .0
+            .clone();
+        for i in 0..4_000 {
+            let mut model = app.world_mut().spawn((
+                MultiresModel(handle.clone()),
+                Transform::from_xyz(i as f32 * 3.0, 0.0, -50.0),
+            ));
+            if shared {
+                model.insert(SharedLevels::default());
+            }
+        }
+        for _ in 0..3 {
+            app.update();
+        }
+        let after = super::soak::resident_bytes().unwrap_or(0);
+        let index_bytes = app
+            .world()
+            .get::<MultiresInstance>(models[0])
+            .unwrap()
+            .caches()
+            .index_bytes();
+        println!(
+            "{}: {:.1} KB per extra instance (its caches' index buffers: {index_bytes} B)",
+            if shared { "SharedLevels" } else { "own meshes" },
+            (after.saturating_sub(before)) as f64 / 4_000.0 / 1024.0
+        );
+    }
+}
+
+#[test]
 fn instances_at_the_same_levels_draw_the_same_mesh() {
     let (mut app, mut models, camera) = scene(16, true, 20_000);
     // Three more copies on each spot: they are allocated alike, so they show the same levels.

@@ -27,7 +27,7 @@ use bevy_aslod::plugin::{
 use bevy_aslod::regions::{GridPlane, Partition};
 
 /// Resident memory in bytes (Linux; `None` elsewhere).
-fn resident_bytes() -> Option<u64> {
+pub(crate) fn resident_bytes() -> Option<u64> {
     let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
     let pages: u64 = statm.split_whitespace().nth(1)?.parse().ok()?;
     Some(pages * 4096)
