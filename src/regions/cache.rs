@@ -650,7 +650,7 @@ mod tests {
             let r = (seed >> 33) as usize % n;
             let max = regions.regions()[r].max_triangles();
             let target = (seed >> 40) as usize % (max + 2);
-            if (seed >> 20) % 4 == 0 {
+            if (seed >> 20).is_multiple_of(4) {
                 let level = target % regions.regions()[r].mesh.level_count();
                 assert_eq!(
                     full.set_level(&regions, r, level),
@@ -667,7 +667,7 @@ mod tests {
                 assert_eq!(full.triangle_count(q), lean.triangle_count(q));
                 assert_eq!(full.is_dirty(q), lean.is_dirty(q));
             }
-            if (seed >> 24) % 16 == 0 {
+            if (seed >> 24).is_multiple_of(16) {
                 // Another full set of caches, put at the same levels by `set_level` from
                 // wherever it was, writes the same buffers.
                 let mut other = RegionCaches::new(&regions);
