@@ -17,7 +17,8 @@ pub fn prop_field(prop: &Path, dir: &Path, side: usize, spacing: f32) -> PathBuf
     let json_len = word(12);
     let mut json: serde_json::Value =
         serde_json::from_slice(&bytes[20..20 + json_len]).expect("GLB JSON");
-    let bin = &bytes[20 + json_len..];
+    // The BIN chunk's payload, past its 8-byte header.
+    let bin = bytes.get(28 + json_len..).unwrap_or_default();
     let scene = json["scene"].as_u64().unwrap_or(0) as usize;
     let roots = json["scenes"][scene]["nodes"].clone();
     let nodes = json["nodes"].as_array_mut().expect("nodes");
@@ -43,20 +44,29 @@ pub fn prop_field(prop: &Path, dir: &Path, side: usize, spacing: f32) -> PathBuf
     }
     json["scenes"] = serde_json::json!([{ "nodes": copies }]);
     json["scene"] = 0.into();
-    let mut text = serde_json::to_vec(&json).unwrap();
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    let total = 12 + 8 + text.len() + bin.len();
+    let path = dir.join("field.glb");
+    std::fs::write(&path, glb(&serde_json::to_vec(&json).unwrap(), bin)).unwrap();
+    path
+}
+
+/// A GLB container of `json` and, when not empty, a `BIN` chunk of `bin` (each padded to 4
+/// bytes, JSON with spaces).
+pub fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
+    let mut text = json.to_vec();
+    text.resize(text.len().next_multiple_of(4), b' ');
+    let mut bin = bin.to_vec();
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
     out.extend_from_slice(&2u32.to_le_bytes());
     out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&text);
-    out.extend_from_slice(bin);
-    let path = dir.join("field.glb");
-    std::fs::write(&path, out).unwrap();
-    path
+    for (kind, chunk) in [(b"JSON", &text), (b"BIN\0", &bin)] {
+        if !chunk.is_empty() {
+            out.extend_from_slice(&(chunk.len() as u32).to_le_bytes());
+            out.extend_from_slice(kind);
+            out.extend_from_slice(chunk);
+        }
+    }
+    out
 }

@@ -316,7 +316,12 @@ impl RegionCaches {
     /// Every region at full detail, every region dirty.
     #[must_use]
     pub fn new(mesh: &RegionMesh) -> Self {
-        let caches: Vec<_> = mesh.regions().iter().map(|r| Cache::new(&r.mesh)).collect();
+        Self::of(mesh, Cache::new)
+    }
+
+    /// Every region's cache made by `cache`, at full detail, every region dirty.
+    fn of(mesh: &RegionMesh, cache: fn(&ProgressiveMesh) -> Cache) -> Self {
+        let caches: Vec<_> = mesh.regions().iter().map(|r| cache(&r.mesh)).collect();
         let steady = caches
             .iter()
             .zip(mesh.regions())
@@ -337,22 +342,7 @@ impl RegionCaches {
     /// methods panic.
     #[must_use]
     pub fn levels_only(mesh: &RegionMesh) -> Self {
-        let caches: Vec<_> = mesh
-            .regions()
-            .iter()
-            .map(|r| Cache::levels(&r.mesh))
-            .collect();
-        let steady = caches
-            .iter()
-            .zip(mesh.regions())
-            .map(|(cache, r)| Steady::of(cache, &r.mesh))
-            .collect();
-        Self {
-            caches,
-            steady,
-            dirty: vec![true; mesh.regions().len()],
-            scratch: Scratch::default(),
-        }
+        Self::of(mesh, Cache::levels)
     }
 
     /// Whether the caches hold index buffers (made by [`new`](Self::new), not
