@@ -10,7 +10,10 @@
 //! medians and the worst view), the first view's PNGs, and `compare.png` (reference, ours,
 //! meshoptimizer at the smallest ratio), and prints a table. `MODEL` defaults to the shared
 //! test data's `textured/WaterBottle.glb`. The render test runs it with `--views 2 --ratios
-//! 0.05 --no-peer`.
+//! 0.05 --no-peer`. With `--copies N` it writes MODEL placed N times by one glTF
+//! (`field.glb`) and draws one view across the field from beside its corner copy, reporting
+//! the nearest and farthest copies' triangles (`--min-pixels P` sets
+//! `PolygonBudget::min_pixels`).
 
 mod common;
 
