@@ -132,13 +132,7 @@ pub(super) fn spawn_regions(
         let model_asset = model.0.id();
         let instance = MultiresInstance {
             asset: model_asset,
-            // A shared model's level meshes are made from its asset's caches: it keeps its
-            // levels alone.
-            caches: if shared.is_some() {
-                RegionCaches::levels_only(&regions)
-            } else {
-                RegionCaches::new(&regions)
-            },
+            caches: region_caches(&regions, shared.is_some()),
             bounds: asset.bounds(),
             obbs: asset.obbs().clone(),
             curves: asset.error_curves().clone(),
@@ -337,6 +331,16 @@ pub(super) fn mark_handle_changed(
         if model.0.id() != instance.asset {
             commands.entity(entity).insert(Rebuild);
         }
+    }
+}
+
+/// A new instance's caches: a shared model's level meshes are made from its asset's caches,
+/// so it keeps its levels alone.
+fn region_caches(regions: &RegionMesh, shared: bool) -> RegionCaches {
+    if shared {
+        RegionCaches::levels_only(regions)
+    } else {
+        RegionCaches::new(regions)
     }
 }
 
