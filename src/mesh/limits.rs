@@ -20,11 +20,11 @@ use std::path::Path;
 ///
 /// The file is held whole while it is read, and a `data:` URI in a glTF's JSON also as the
 /// parsed string and the buffer it decodes to; the rest of the JSON takes up to about 200
-/// bytes per byte once parsed (a list of empty objects, measured); a vertex takes at most about 100
-/// bytes with every attribute; a triangle its indices and, for a glTF primitive with a normal
-/// map and no tangents, MikkTSpace's working memory of about 500 bytes (`tests/limits.rs`
-/// checks the bound on every real test file, and that crafted files over a limit are refused
-/// before they allocate more than a small multiple of their size).
+/// bytes per byte once parsed (a list of empty objects, measured); a vertex takes at most
+/// about 100 bytes with every attribute; a triangle its indices and, for a glTF primitive
+/// with a normal map and no tangents, MikkTSpace's working memory of about 500 bytes
+/// (`tests/limits.rs` checks the bound on every real test file, and that crafted files over
+/// a limit are refused before they allocate more than a small multiple of their size).
 ///
 /// The defaults keep that bound under 8 GB (6.4 GB) and still read a real game asset of a few
 /// million triangles: a 512 MiB file, 4 MiB of glTF JSON, 1 GiB of decoded attribute data,
