@@ -173,7 +173,7 @@ pub(super) struct SharedMeshes {
     /// Per asset (by serial), one full set of caches that makes its level meshes: shared
     /// instances keep their levels alone ([`RegionCaches::levels_only`]), so the index
     /// buffers are held once per asset, not once per instance.
-    scratch: HashMap<u64, RegionCaches>,
+    level_caches: HashMap<u64, RegionCaches>,
     next_serial: u64,
 }
 
@@ -275,7 +275,7 @@ impl SharedUpload<'_, '_, '_> {
                     let regions = &instance.regions;
                     let caches = self
                         .table
-                        .scratch
+                        .level_caches
                         .entry(state.asset.serial)
                         .or_insert_with(|| RegionCaches::new(regions));
                     // The region's buffer depends on its dependencies' levels alone.
@@ -374,7 +374,7 @@ pub(super) fn forget_dropped(
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event
             && let Some(asset) = table.assets.remove(id)
         {
-            table.scratch.remove(&asset.serial);
+            table.level_caches.remove(&asset.serial);
         }
     }
 }

@@ -1,34 +1,19 @@
 //! Accessors: typed attribute data decoded from the buffers, every read bounds-checked.
 
 use super::container::gltf_error;
-use crate::mesh::LoadLimits;
 use crate::mesh::{MeshError, MeshResult};
 use gltf::Accessor;
 use gltf::accessor::DataType;
 use std::borrow::Cow;
-use std::cell::Cell;
 
 /// Accessors without a buffer view are zeros of the declared count; a count above this
 /// would only exhaust memory, so such files are rejected.
 const MAX_ZERO_FILLED_ELEMENTS: usize = 1 << 24;
 
-/// The contents of the document's buffers, by buffer index, and what decoding them may
-/// still allocate.
+/// The contents of the document's buffers, by buffer index. What decoding them allocates
+/// was checked against the limits before they were read ([`Plan`](super::plan::Plan)).
 pub(super) struct Data<'a> {
     pub(super) buffers: Vec<Cow<'a, [u8]>>,
-    pub(super) limits: LoadLimits,
-    /// Bytes decoded so far, against [`LoadLimits::decoded_bytes`].
-    decoded: Cell<u64>,
-}
-
-impl<'a> Data<'a> {
-    pub(super) fn new(buffers: Vec<Cow<'a, [u8]>>, limits: LoadLimits) -> Self {
-        Self {
-            buffers,
-            limits,
-            decoded: Cell::new(0),
-        }
-    }
 }
 
 impl Data<'_> {
@@ -90,11 +75,6 @@ impl Data<'_> {
                 "accessors[{a}].count: must be at least 1"
             )));
         }
-        // Charged before anything is allocated, every time an accessor is decoded.
-        let bytes = (count as u64).saturating_mul(std::mem::size_of::<T>() as u64);
-        let decoded = self.decoded.get().saturating_add(bytes);
-        LoadLimits::check("decoded_bytes", decoded, self.limits.decoded_bytes)?;
-        self.decoded.set(decoded);
         let mut out = match accessor.view() {
             Some(view) => {
                 let bytes = self.view_bytes(&view)?;

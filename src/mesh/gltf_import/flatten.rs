@@ -6,8 +6,7 @@ use super::plan::{Plan, is_carried};
 use super::scene::{GltfSkinInfo, Instance};
 use crate::mesh::tangents::mikktspace;
 use crate::mesh::{
-    COLOR_ID, IndexedMesh, LoadLimits, MeshError, MeshResult, UV_1_ID, ValidationReport,
-    VertexAttribute,
+    COLOR_ID, IndexedMesh, MeshError, MeshResult, UV_1_ID, ValidationReport, VertexAttribute,
 };
 use glam::{Mat3, Vec2, Vec3, Vec4};
 use gltf::Primitive;
@@ -195,11 +194,6 @@ impl Builder {
             return Err(gltf_error(format!("{at}.attributes: no POSITION")));
         };
         let vertex_count = position_accessor.count();
-        LoadLimits::check(
-            "vertices",
-            (self.mesh.positions.len() as u64).saturating_add(vertex_count as u64),
-            data.limits.vertices,
-        )?;
         for (semantic, accessor) in primitive.attributes() {
             if accessor.count() != vertex_count {
                 return Err(MeshError::AttributeCountMismatch {
@@ -280,11 +274,6 @@ impl Builder {
             }
             None => (0..vertex_count as u32).collect::<Vec<u32>>(),
         };
-        LoadLimits::check(
-            "triangles",
-            ((self.mesh.indices.len() + indices.len()) / 3) as u64,
-            data.limits.triangles,
-        )?;
         if let Some(pos) = indices.iter().position(|&i| i as usize >= vertex_count) {
             return Err(MeshError::IndexOutOfRange {
                 triangle: pos / 3,

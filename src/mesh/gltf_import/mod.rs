@@ -170,7 +170,7 @@ fn load<'a>(
     limits: &LoadLimits,
 ) -> MeshResult<(Data<'a>, Vec<GltfSkinInfo>)> {
     let buffers = load_buffers(document, file_bytes, bin, base_dir, limits)?;
-    let data = Data::new(buffers, *limits);
+    let data = Data { buffers };
     let skins = document
         .skins()
         .map(|skin| read_skin(&data, &skin))

@@ -27,14 +27,17 @@ impl Plan {
     ///
     /// # Errors
     /// [`MeshError::LimitExceeded`](crate::mesh::MeshError::LimitExceeded) naming the first
-    /// of `vertices`, `triangles` and `decoded_bytes` the sums exceed.
+    /// of `vertices`, `triangles`, `decoded_bytes` and (the largest skin's) `joints` the sums
+    /// exceed.
     pub(super) fn check<'a>(
         document: &Document,
         meshes: impl IntoIterator<Item = gltf::Mesh<'a>>,
         limits: &LoadLimits,
     ) -> MeshResult<Self> {
         let mut plan = Self::default();
+        let mut joints = 0;
         for skin in document.skins() {
+            joints = joints.max(skin.joints().len() as u64);
             if let Some(matrices) = skin.inverse_bind_matrices() {
                 plan.decode(&matrices)?;
             }
@@ -47,6 +50,7 @@ impl Plan {
         LoadLimits::check("vertices", plan.vertices, limits.vertices)?;
         LoadLimits::check("triangles", plan.triangles, limits.triangles)?;
         LoadLimits::check("decoded_bytes", plan.decoded_bytes, limits.decoded_bytes)?;
+        LoadLimits::check("joints", joints, limits.joints)?;
         Ok(plan)
     }
 

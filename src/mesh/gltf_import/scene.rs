@@ -22,7 +22,6 @@ pub struct GltfSkinInfo {
 
 pub(super) fn read_skin(data: &Data<'_>, skin: &gltf::Skin<'_>) -> MeshResult<GltfSkinInfo> {
     let s = skin.index();
-    crate::mesh::LoadLimits::check("joints", skin.joints().len() as u64, data.limits.joints)?;
     let joints: Vec<usize> = skin.joints().map(|node| node.index()).collect();
     if joints.is_empty() {
         return Err(gltf_error(format!(
