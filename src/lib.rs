@@ -56,7 +56,7 @@ pub mod prelude {
         AslodOverlay, AslodPlugin, AslodStats, AslodSystems, AslodViewport, CountInBudget,
         FullDetail, Geomorph, GeomorphMaterial, GpuGeomorph, LodPriority, LodRegion, MultiresError,
         MultiresInstance, MultiresMaterialPlugin, MultiresMesh, MultiresModel, MultiresScene,
-        MultiresSceneModels, MultiresSkin, PartitionSpec, PolygonBudget, RefineCamera, RegionSplit,
-        RegionUpload, SharedLevels, ViewDependent,
+        MultiresSceneModels, MultiresSkin, NoSharedLevels, PartitionSpec, PolygonBudget,
+        RefineCamera, RegionSplit, RegionUpload, SharedLevels, ViewDependent,
     };
 }

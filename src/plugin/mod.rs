@@ -103,7 +103,7 @@ pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel, OverlayStatus, status_line};
 pub use render::{RegionUpload, RegionUploadStats};
 pub use scene::{MultiresScene, MultiresSceneConverted, MultiresSceneModels, MultiresSourceMesh};
 pub use sets::AslodSystems;
-pub use shared::SharedLevels;
+pub use shared::{NoSharedLevels, SharedLevels};
 pub use skin::MultiresSkin;
 pub use skin::binding::SkinBinding;
 pub use view_dependent::ViewDependent;
@@ -221,6 +221,7 @@ impl Plugin for AslodPlugin {
             .register_type::<Geomorph>()
             .register_type::<GpuGeomorph>()
             .register_type::<SharedLevels>()
+            .register_type::<NoSharedLevels>()
             .register_type::<ViewDependent>()
             .register_type::<RefineCamera>()
             .register_type::<NoLodAllocation>()

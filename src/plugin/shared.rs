@@ -1,5 +1,7 @@
 //! Shared levels: the instances of one asset that show a region at the same levels draw one
-//! Bevy mesh, made once and dropped when no instance shows it ([`SharedLevels`]).
+//! Bevy mesh, made once and dropped when no instance shows it ([`SharedLevels`]). Every
+//! unskinned model whose asset has more than one instance shares (see [`ladder`]), unless it
+//! has a [`Geomorph`](super::Geomorph) or [`NoSharedLevels`].
 //!
 //! A region's index buffer is a function of its own level and of the levels of the regions
 //! whose steps move its border corners (its *dependencies*), whatever path the caches took
@@ -25,7 +27,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use std::sync::Arc;
 
-/// Makes a [`MultiresModel`](super::MultiresModel) share its region meshes with every other
+/// How a [`MultiresModel`](super::MultiresModel) shares its region meshes with every other
 /// instance of its asset: each region shows a level from a ladder whose steps are `ratio`
 /// apart in triangles (the step at or below its allocation), and the instances showing a
 /// region at the same levels draw the same Bevy mesh. Mesh memory is then bounded by the
@@ -33,11 +35,18 @@ use std::sync::Arc;
 /// asset while every step is in use (3× at the default 1.5, as a chain of discrete levels
 /// each half the one before costs 2×).
 ///
+/// **Sharing is the default.** An unskinned model without a
+/// [`Geomorph`](super::Geomorph) shares with the default ladder as soon as its asset has a
+/// second instance ([`MultiresScene`](super::MultiresScene) models included); it keeps
+/// sharing until it is rebuilt. Insert this component to choose the ratio, or to share a
+/// model with a `Geomorph` too (which then changes its regions' levels at once;
+/// view-dependent levels still morph), and [`NoSharedLevels`] to keep a model on meshes of
+/// its own.
+///
 /// A shared model draws up to `1 - 1/ratio` fewer triangles than it was allocated (the
 /// budget still holds). Skinned models move their own vertices and ignore it (with a
-/// warning); so do region geomorphs, which move vertices per instance: a shared model with a
-/// [`Geomorph`](super::Geomorph) changes its regions' levels at once (view-dependent levels
-/// still morph). Adding, changing or removing the component rebuilds the model.
+/// warning). Adding, changing or removing the component rebuilds the model when that
+/// changes how it shares.
 ///
 /// ```
 /// use bevy::prelude::*;
@@ -126,6 +135,36 @@ impl Default for SharedLevels {
     }
 }
 
+/// Keeps a [`MultiresModel`](super::MultiresModel) on region meshes of its own, whatever
+/// other instances its asset has and even with [`SharedLevels`]: its regions show the levels
+/// it was allocated exactly, and its geomorphs morph. Each such instance holds its regions'
+/// vertex and index data (the asset's size in mesh memory, per instance). Adding or
+/// removing it rebuilds a model whose sharing it changes.
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default)]
+pub struct NoSharedLevels;
+
+/// The ladder a model shares with, or `None` for meshes of its own: never with
+/// [`NoSharedLevels`] (`opted_out`) or when `skinned`; else its explicit [`SharedLevels`];
+/// else the default ladder once its asset has more than one instance, unless it has a
+/// [`Geomorph`](super::Geomorph) (region geomorphs move vertices per instance).
+pub(super) fn ladder(
+    explicit: Option<SharedLevels>,
+    opted_out: bool,
+    geomorph: bool,
+    skinned: bool,
+    instances: u32,
+) -> Option<SharedLevels> {
+    if opted_out || skinned {
+        return None;
+    }
+    match explicit {
+        Some(ladder) => Some(ladder),
+        None if !geomorph && instances > 1 => Some(SharedLevels::default()),
+        None => None,
+    }
+}
+
 /// What a shared model keeps: its asset's shared data and its ladder.
 #[derive(Component, Debug)]
 pub(super) struct SharedState {
@@ -174,6 +213,8 @@ pub(super) struct SharedMeshes {
     /// instances keep their levels alone ([`RegionCaches::levels_only`]), so the index
     /// buffers are held once per asset, not once per instance.
     level_caches: HashMap<u64, RegionCaches>,
+    /// Built models (those with a `MultiresInstance`) per asset.
+    instances: HashMap<AssetId<MultiresMesh>, u32>,
     next_serial: u64,
 }
 
@@ -202,6 +243,26 @@ impl SharedMeshes {
         self.next_serial += 1;
         self.assets.insert(id, asset.clone());
         asset
+    }
+
+    /// How many built models show asset `id`.
+    pub(super) fn instances(&self, id: AssetId<MultiresMesh>) -> u32 {
+        self.instances.get(&id).copied().unwrap_or(0)
+    }
+
+    /// Counts a model built for asset `id`.
+    pub(super) fn count_instance(&mut self, id: AssetId<MultiresMesh>) {
+        *self.instances.entry(id).or_insert(0) += 1;
+    }
+
+    /// Uncounts a model of asset `id` that lost its instance (despawned or rebuilt).
+    pub(super) fn uncount_instance(&mut self, id: AssetId<MultiresMesh>) {
+        if let Some(n) = self.instances.get_mut(&id) {
+            *n -= 1;
+            if *n == 0 {
+                self.instances.remove(&id);
+            }
+        }
     }
 
     /// Level meshes alive in `meshes` (a dropped one is forgotten a frame or two later).

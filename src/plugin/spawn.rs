@@ -6,11 +6,11 @@
 //! ([`remove_region_meshes`]).
 
 use super::asset::MultiresMesh;
-use super::components::{LodRegion, MultiresModel, ViewDependentLevel};
+use super::components::{Geomorph, LodRegion, MultiresModel, ViewDependentLevel};
 use super::geomorph::RegionGeomorphs;
 use super::instance::{AllocationSlot, MultiresInstance, Rebuild, RegionStaging};
 use super::messages::{MultiresBuildFailed, MultiresModelReady};
-use super::shared::{SharedLevels, SharedMeshes, SharedState};
+use super::shared::{NoSharedLevels, SharedLevels, SharedMeshes, SharedState, ladder};
 use super::skin::binding::SkinBinding;
 use super::skin::{MultiresSkin, SkinState, initial_region_mesh};
 use super::view_dependent::{ViewDependent, ViewDependentState};
@@ -22,7 +22,9 @@ use bevy::camera::primitives::{Aabb, MeshAabb};
 use bevy::camera::visibility::RenderLayers;
 use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
 use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
+use bevy::ecs::query::QueryData;
 use bevy::mesh::Indices;
+use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
 /// Everything the plugin keeps on a model once its asset is loaded (removed at once before
@@ -38,37 +40,60 @@ type ModelState = (
     Rebuild,
 );
 
+/// A model [`spawn_regions`] builds: new, or marked [`Rebuild`].
+#[derive(QueryData)]
+pub(super) struct ModelToBuild {
+    entity: Entity,
+    model: &'static MultiresModel,
+    joints: Option<&'static MultiresSkin>,
+    shared: Option<&'static SharedLevels>,
+    opted_out: Has<NoSharedLevels>,
+    geomorph: Has<Geomorph>,
+    /// Its instance before the rebuild, if any.
+    built: Option<&'static MultiresInstance>,
+    rebuild: Has<Rebuild>,
+}
+
+/// What decides how a built model shares: see [`ladder`].
+type SharingOf = (
+    Entity,
+    &'static MultiresInstance,
+    Option<&'static SharedLevels>,
+    Has<NoSharedLevels>,
+    Has<Geomorph>,
+    Option<&'static SharedState>,
+);
+
 /// Gives every new [`MultiresModel`] whose asset is loaded its region children and state,
 /// and every [`Rebuild`] one new ones. Any old state goes first (as on despawn, the observer
 /// frees its regions), and the new state is added, so materials, levels and geomorphs start
 /// over. A skinned asset with a [`MultiresSkin`] puts each rigid region under its joint
-/// entity instead.
-#[allow(clippy::type_complexity)]
+/// entity instead. A model shares level meshes as [`ladder`] says, counting this frame's new
+/// models: the first instance of an asset that gets a second is rebuilt to share.
 pub(super) fn spawn_regions(
     mut commands: Commands,
-    models: Query<
-        (
-            Entity,
-            &MultiresModel,
-            Option<&MultiresSkin>,
-            Option<&SharedLevels>,
-            Has<Rebuild>,
-        ),
-        Or<(Without<MultiresInstance>, With<Rebuild>)>,
-    >,
+    models: Query<ModelToBuild, Or<(Without<MultiresInstance>, With<Rebuild>)>>,
+    built: Query<SharingOf, Without<Rebuild>>,
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut shared_meshes: ResMut<SharedMeshes>,
     mut ready: MessageWriter<MultiresModelReady>,
 ) {
-    for (entity, model, joints, shared, rebuild) in &models {
+    if models.is_empty() {
+        return;
+    }
+    let totals = instances_once_built(&models, &assets, &shared_meshes);
+    share_first_instances(&mut commands, &totals, &built, &assets, &shared_meshes);
+    for item in &models {
+        let (entity, model, joints) = (item.entity, item.model, item.joints);
         let asset = assets.get(&model.0);
-        if rebuild || asset.is_some() {
+        if item.rebuild || asset.is_some() {
             commands.entity(entity).remove::<ModelState>();
         }
         let Some(asset) = asset else {
             continue; // not loaded yet
         };
+        shared_meshes.count_instance(model.0.id());
         let regions = asset.regions().clone();
         let binding = match (asset.skin(), joints) {
             (Some(binding), Some(_)) => Some(binding.clone()),
@@ -96,29 +121,33 @@ pub(super) fn spawn_regions(
             binding: binding.as_deref(),
             joints,
         };
-        let shared = match (shared, asset.skin()) {
-            (Some(_), Some(_)) => {
+        if item.shared.is_some() && asset.skin().is_some() {
+            warn!(
+                "MultiresModel {entity} has SharedLevels but is skinned: its regions keep their own meshes"
+            );
+        }
+        let instances = totals.get(&model.0.id()).copied().unwrap_or(1);
+        let ladder = ladder(
+            item.shared.copied(),
+            item.opted_out,
+            item.geomorph,
+            asset.skin().is_some(),
+            instances,
+        );
+        let shared = ladder.map(|ladder| {
+            if ladder.effective_ratio() != ladder.ratio {
                 warn!(
-                    "MultiresModel {entity} has SharedLevels but is skinned: its regions keep their own meshes"
+                    "MultiresModel {entity}: SharedLevels ratio {} is not above {}; {} is used",
+                    ladder.ratio,
+                    SharedLevels::MIN_RATIO,
+                    SharedLevels::MIN_RATIO
                 );
-                None
             }
-            (Some(&ladder), None) => {
-                if ladder.effective_ratio() != ladder.ratio {
-                    warn!(
-                        "MultiresModel {entity}: SharedLevels ratio {} is not above {}; {} is used",
-                        ladder.ratio,
-                        SharedLevels::MIN_RATIO,
-                        SharedLevels::MIN_RATIO
-                    );
-                }
-                Some(SharedState {
-                    asset: shared_meshes.asset(model.0.id(), &regions),
-                    ladder,
-                })
+            SharedState {
+                asset: shared_meshes.asset(model.0.id(), &regions),
+                ladder,
             }
-            _ => None,
-        };
+        });
         let (handles, region_entities) = match &shared {
             Some(state) => spawn_shared_region_entities(&mut commands, entity, &state.asset.boxes),
             None => spawn_region_entities(&mut commands, &mut meshes, &regions, &place, initial),
@@ -159,6 +188,64 @@ pub(super) fn spawn_regions(
             asset: model_asset,
         });
     }
+}
+
+/// Per asset, the models that will show it once `models` are built: those built, and each
+/// new one whose asset is loaded (a model rebuilt for the asset it showed counts once).
+fn instances_once_built(
+    models: &Query<ModelToBuild, Or<(Without<MultiresInstance>, With<Rebuild>)>>,
+    assets: &Assets<MultiresMesh>,
+    table: &SharedMeshes,
+) -> HashMap<AssetId<MultiresMesh>, u32> {
+    let mut totals = HashMap::default();
+    for item in models {
+        let id = item.model.0.id();
+        if !assets.contains(id) {
+            continue;
+        }
+        let total = totals.entry(id).or_insert_with(|| table.instances(id));
+        if item.built.is_none_or(|built| built.asset != id) {
+            *total += 1;
+        }
+    }
+    totals
+}
+
+/// Marks [`Rebuild`] each built model that would share once its asset has the instances
+/// in `totals` but does not: the one instance an asset had before this frame's.
+fn share_first_instances(
+    commands: &mut Commands,
+    totals: &HashMap<AssetId<MultiresMesh>, u32>,
+    built: &Query<SharingOf, Without<Rebuild>>,
+    assets: &Assets<MultiresMesh>,
+    table: &SharedMeshes,
+) {
+    let growing = |id: &AssetId<MultiresMesh>| {
+        table.instances(*id) == 1 && totals.get(id).is_some_and(|&n| n > 1)
+    };
+    if !totals.keys().any(growing) {
+        return;
+    }
+    for (entity, instance, explicit, opted_out, geomorph, state) in built {
+        let Some(&total) = totals.get(&instance.asset) else {
+            continue;
+        };
+        let wanted = ladder(
+            explicit.copied(),
+            opted_out,
+            geomorph,
+            is_skinned(assets, instance.asset),
+            total,
+        );
+        if state.is_none() && wanted.is_some() {
+            commands.entity(entity).insert(Rebuild);
+        }
+    }
+}
+
+/// Whether asset `id` is skinned (`false` once it is gone).
+fn is_skinned(assets: &Assets<MultiresMesh>, id: AssetId<MultiresMesh>) -> bool {
+    assets.get(id).is_some_and(|asset| asset.skin().is_some())
 }
 
 /// Writes a [`MultiresBuildFailed`] for each model whose asset failed to load (once per
@@ -344,26 +431,48 @@ fn region_caches(regions: &RegionMesh, shared: bool) -> RegionCaches {
     }
 }
 
-/// Every model whose [`SharedLevels`] came, changed or went is marked [`Rebuild`]: its
-/// regions move between their own meshes and the shared ones.
+/// Every built model whose [`SharedLevels`] came, changed or went, or whose
+/// [`NoSharedLevels`] or [`Geomorph`] came or went, is marked [`Rebuild`] when [`ladder`]
+/// now says otherwise than how it shares: its regions move between their own meshes and the
+/// shared ones.
 #[allow(clippy::type_complexity)]
 pub(super) fn mark_shared_changed(
     mut commands: Commands,
     changed: Query<
-        (Entity, &SharedLevels, Option<&SharedState>),
-        (With<MultiresInstance>, Changed<SharedLevels>),
+        Entity,
+        (
+            With<MultiresInstance>,
+            Or<(
+                Changed<SharedLevels>,
+                Added<NoSharedLevels>,
+                Added<Geomorph>,
+            )>,
+        ),
     >,
-    mut removed: RemovedComponents<SharedLevels>,
-    shared: Query<(), With<SharedState>>,
+    mut removed_ladders: RemovedComponents<SharedLevels>,
+    mut removed_opt_outs: RemovedComponents<NoSharedLevels>,
+    mut removed_geomorphs: RemovedComponents<Geomorph>,
+    built: Query<SharingOf, Without<Rebuild>>,
+    assets: Res<Assets<MultiresMesh>>,
+    table: Res<SharedMeshes>,
 ) {
-    for (model, levels, state) in &changed {
-        if state.map(|s| s.ladder) != Some(*levels) {
-            commands.entity(model).insert(Rebuild);
-        }
-    }
-    for model in removed.read() {
-        if shared.contains(model) {
-            commands.entity(model).try_insert(Rebuild);
+    let removed = removed_ladders
+        .read()
+        .chain(removed_opt_outs.read())
+        .chain(removed_geomorphs.read());
+    for model in changed.iter().chain(removed) {
+        let Ok((entity, instance, explicit, opted_out, geomorph, state)) = built.get(model) else {
+            continue;
+        };
+        let wanted = ladder(
+            explicit.copied(),
+            opted_out,
+            geomorph,
+            is_skinned(&assets, instance.asset),
+            table.instances(instance.asset),
+        );
+        if state.map(|s| s.ladder) != wanted {
+            commands.entity(entity).try_insert(Rebuild);
         }
     }
 }
@@ -504,10 +613,14 @@ pub(super) fn remove_region_meshes(
         Has<SharedState>,
     )>,
     meshes: Option<ResMut<Assets<Mesh>>>,
+    table: Option<ResMut<SharedMeshes>>,
 ) {
     let Ok((instance, view_dependent, shared)) = instances.get(remove.entity) else {
         return;
     };
+    if let Some(mut table) = table {
+        table.uncount_instance(instance.asset);
+    }
     for entity in instance.drawn_entities() {
         commands.entity(entity).try_despawn();
     }

@@ -4,8 +4,8 @@ use bevy::diagnostic::DiagnosticsStore;
 use bevy::prelude::*;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodViewport, CountInBudget, LodPriority, LodRegion,
-    MultiresInstance, MultiresMesh, MultiresModel, PartitionSpec, PolygonBudget, RegionSplit,
-    RegionUpload, diagnostics,
+    MultiresInstance, MultiresMesh, MultiresModel, NoSharedLevels, PartitionSpec, PolygonBudget,
+    RegionSplit, RegionUpload, diagnostics,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 use glam::Vec3;
@@ -315,8 +315,11 @@ fn level_changes(mode: RegionUpload) -> (usize, usize) {
         .add_systems(Last, count_modified);
     let handle = add_asset(&mut app);
     let camera = spawn_camera(&mut app, Vec3::new(0.0, 40.0, 80.0));
-    spawn_model(&mut app, &handle, Vec3::ZERO);
-    spawn_model(&mut app, &handle, Vec3::new(20.0, 0.0, 0.0));
+    // Meshes of their own: shared level meshes are made, not modified.
+    for at in [Vec3::ZERO, Vec3::new(20.0, 0.0, 0.0)] {
+        let model = spawn_model(&mut app, &handle, at);
+        app.world_mut().entity_mut(model).insert(NoSharedLevels);
+    }
     let mut changed = 0;
     for step in 0..12 {
         let at = Vec3::new(0.0, 40.0, 80.0) * (1.0 - step as f32 / 14.0);

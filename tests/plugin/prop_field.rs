@@ -168,3 +168,102 @@ fn four_hundred_real_props_stay_within_the_budget() {
     assert_eq!(still_hidden, 0);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Writes `field.glb` into `dir`: one bumpy 800-triangle grid mesh placed by `n` nodes in a
+/// row, 3 m apart.
+fn grid_field(dir: &std::path::Path, n: usize) {
+    let side = 21;
+    let mut bin = Vec::new();
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for z in 0..side {
+        for x in 0..side {
+            let p = Vec3::new(
+                x as f32 * 0.1,
+                ((x * 7 + z * 13) % 5) as f32 * 0.02,
+                z as f32 * 0.1,
+            );
+            (lo, hi) = (lo.min(p), hi.max(p));
+            bin.extend(p.to_array().iter().flat_map(|c| c.to_le_bytes()));
+        }
+    }
+    let positions = bin.len();
+    for z in 0..side - 1 {
+        for x in 0..side - 1 {
+            let i = (z * side + x) as u16;
+            let s = side as u16;
+            for v in [i, i + s, i + 1, i + 1, i + s, i + s + 1] {
+                bin.extend(v.to_le_bytes());
+            }
+        }
+    }
+    let indices = (side - 1) * (side - 1) * 6;
+    let nodes: Vec<_> = (0..n)
+        .map(|i| serde_json::json!({ "mesh": 0, "translation": [i as f32 * 3.0, 0.0, 0.0] }))
+        .collect();
+    let json = serde_json::json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": (0..n).collect::<Vec<_>>() }],
+        "nodes": nodes,
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 }, "indices": 1 }] }],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": side * side, "type": "VEC3",
+              "min": lo.to_array(), "max": hi.to_array() },
+            { "bufferView": 1, "componentType": 5123, "count": indices, "type": "SCALAR" },
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": positions },
+            { "buffer": 0, "byteOffset": positions, "byteLength": bin.len() - positions },
+        ],
+        "buffers": [{ "byteLength": bin.len() }],
+    });
+    let bytes = field::glb(&serde_json::to_vec(&json).unwrap(), &bin);
+    std::fs::write(dir.join("field.glb"), bytes).unwrap();
+}
+
+#[test]
+fn a_thousand_scene_instances_share_level_meshes_by_default() {
+    let dir = std::env::temp_dir().join(format!("aslod-grid-field-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    grid_field(&dir, 1_000);
+    let budget = 100_000;
+    let mut app = app(budget, dir.to_str().unwrap());
+    // Along the row from one end: the copies stand at every distance.
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Transform::from_xyz(-2.0, 1.0, 0.5).looking_at(Vec3::new(3_000.0, 0.0, 0.5), Vec3::Y),
+    ));
+    let models = spawn_field(&mut app);
+    assert_eq!(models.len(), 1_000);
+    for _ in 0..6 {
+        app.update();
+    }
+    let stats = app.world().resource::<AslodStats>();
+    assert!(stats.triangles <= u64::from(budget));
+    // Every copy draws one of a few level meshes (a ladder of steps 1.5× apart), not a
+    // mesh of its own.
+    let mut drawn = std::collections::HashSet::new();
+    for &model in &models {
+        let instance = app.world().get::<MultiresInstance>(model).unwrap();
+        for &region in instance.region_entities() {
+            drawn.insert(app.world().get::<Mesh3d>(region).unwrap().0.id());
+        }
+    }
+    let levels = app.world().resource::<AslodStats>().shared_meshes;
+    eprintln!(
+        "1,000 copies draw {} meshes; {levels} level meshes alive",
+        drawn.len()
+    );
+    assert!(
+        drawn.len() > 1,
+        "the near copies are finer than the far ones"
+    );
+    assert!(drawn.len() <= 20, "{} meshes for 1,000 copies", drawn.len());
+    assert!(drawn.len() <= levels);
+    assert!(
+        app.world().resource::<Assets<Mesh>>().len() < 40,
+        "{} meshes in all",
+        app.world().resource::<Assets<Mesh>>().len()
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -5,7 +5,8 @@ use super::models::app;
 use bevy::mesh::Indices;
 use bevy::prelude::*;
 use bevy_aslod::plugin::{
-    AslodStats, MultiresInstance, MultiresMesh, MultiresModel, PolygonBudget, SharedLevels,
+    AslodStats, Geomorph, MultiresInstance, MultiresMesh, MultiresModel, NoSharedLevels,
+    PolygonBudget, SharedLevels,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 
@@ -52,6 +53,8 @@ fn scene(n: usize, shared: bool, budget: u32) -> (App, Vec<Entity>, Entity) {
             ));
             if shared {
                 model.insert(SharedLevels::default());
+            } else {
+                model.insert(NoSharedLevels);
             }
             model.id()
         })
@@ -202,6 +205,8 @@ fn memory_per_instance() {
             ));
             if shared {
                 model.insert(SharedLevels::default());
+            } else {
+                model.insert(NoSharedLevels);
             }
         }
         for _ in 0..3 {
@@ -306,12 +311,35 @@ fn despawning_shared_instances_frees_their_meshes() {
     assert_eq!(app.world().resource::<AslodStats>().shared_meshes, 0);
 }
 
+/// Asserts that every model in `models` draws its own meshes.
+fn assert_own_meshes(app: &App, models: &[Entity]) {
+    for &m in models {
+        let instance = app.world().get::<MultiresInstance>(m).unwrap();
+        for (&entity, handle) in instance.region_entities().iter().zip(instance.meshes()) {
+            assert_eq!(
+                app.world().get::<Mesh3d>(entity).unwrap().0.id(),
+                handle.id()
+            );
+        }
+    }
+}
+
 #[test]
-fn removing_shared_levels_gives_a_model_its_own_meshes_again() {
+fn no_shared_levels_gives_a_model_its_own_meshes_again() {
     let (mut app, models, camera) = scene(4, true, 8_000);
     walk(&mut app, &models, camera, 3);
+    // Without `SharedLevels` four instances still share, on the default ladder.
     for &m in &models {
         app.world_mut().entity_mut(m).remove::<SharedLevels>();
+    }
+    walk(&mut app, &models, camera, 3);
+    settle(&mut app);
+    assert_eq!(
+        app.world().resource::<AslodStats>().shared_meshes,
+        app.world().resource::<Assets<Mesh>>().len()
+    );
+    for &m in &models {
+        app.world_mut().entity_mut(m).insert(NoSharedLevels);
     }
     walk(&mut app, &models, camera, 3);
     settle(&mut app);
@@ -321,19 +349,12 @@ fn removing_shared_levels_gives_a_model_its_own_meshes_again() {
         4 * 4,
         "one mesh per region per model, shared ones dropped"
     );
-    for &m in &models {
-        let instance = app.world().get::<MultiresInstance>(m).unwrap();
-        for (&entity, handle) in instance.region_entities().iter().zip(instance.meshes()) {
-            assert_eq!(
-                app.world().get::<Mesh3d>(entity).unwrap().0.id(),
-                handle.id()
-            );
-        }
-    }
+    assert_own_meshes(&app, &models);
     // And back.
     for &m in &models {
         app.world_mut()
             .entity_mut(m)
+            .remove::<NoSharedLevels>()
             .insert(SharedLevels { ratio: 0.5 });
     }
     walk(&mut app, &models, camera, 3);
@@ -341,4 +362,59 @@ fn removing_shared_levels_gives_a_model_its_own_meshes_again() {
         app.world().resource::<AslodStats>().shared_meshes,
         app.world().resource::<Assets<Mesh>>().len()
     );
+}
+
+#[test]
+fn the_instances_of_an_asset_share_by_default() {
+    // One instance keeps its own meshes: it shows exactly the levels it was allocated.
+    let (mut app, mut models, camera) = scene(1, false, 8_000);
+    app.world_mut()
+        .entity_mut(models[0])
+        .remove::<NoSharedLevels>();
+    walk(&mut app, &models, camera, 3);
+    assert_eq!(app.world().resource::<AslodStats>().shared_meshes, 0);
+    assert_own_meshes(&app, &models);
+    // A second instance: both share.
+    let handle = app
+        .world()
+        .get::<MultiresModel>(models[0])
+        .unwrap()
+        .0
+        .clone();
+    models.push(
+        app.world_mut()
+            .spawn((
+                MultiresModel(handle.clone()),
+                Transform::from_xyz(20.0, 0.0, 0.0),
+            ))
+            .id(),
+    );
+    walk(&mut app, &models, camera, 4);
+    settle(&mut app);
+    let shared = app.world().resource::<AslodStats>().shared_meshes;
+    assert!(shared > 0);
+    assert_eq!(shared, app.world().resource::<Assets<Mesh>>().len());
+    // A model with a geomorph keeps its own meshes (its regions morph), as does one with
+    // `NoSharedLevels`.
+    let morphing = app
+        .world_mut()
+        .spawn((
+            MultiresModel(handle),
+            Geomorph(0.25),
+            Transform::from_xyz(0.0, 0.0, 20.0),
+        ))
+        .id();
+    app.world_mut().entity_mut(models[1]).insert(NoSharedLevels);
+    models.push(morphing);
+    walk(&mut app, &models, camera, 4);
+    settle(&mut app);
+    assert_own_meshes(&app, &models[1..]);
+    let shared = app.world().resource::<AslodStats>().shared_meshes;
+    assert_eq!(shared + 2 * 4, app.world().resource::<Assets<Mesh>>().len());
+    // Without its geomorph, the model shares again.
+    app.world_mut().entity_mut(morphing).remove::<Geomorph>();
+    walk(&mut app, &models, camera, 4);
+    settle(&mut app);
+    let shared = app.world().resource::<AslodStats>().shared_meshes;
+    assert_eq!(shared + 4, app.world().resource::<Assets<Mesh>>().len());
 }
