@@ -72,8 +72,8 @@ use bevy_aslod::bevy_mesh::to_bevy_mesh;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodSystems, LodRegion, MultiresInstance, MultiresMesh,
-    MultiresModel, MultiresScene, PartitionSpec, PolygonBudget, RegionUpload, RegionUploadStats,
-    SharedLevels,
+    MultiresModel, MultiresScene, NoSharedLevels, PartitionSpec, PolygonBudget, RegionUpload,
+    RegionUploadStats, SharedLevels,
 };
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches};
 use std::collections::HashMap;
@@ -573,6 +573,8 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
                 MultiresModel(patch.clone()),
                 MeshMaterial3d(grey.clone()),
                 Transform::from_xyz(-8.0, 0.0, 0.0),
+                // Meshes of their own: the check is of the writes into them.
+                NoSharedLevels,
             ))
             .id(),
         world
@@ -580,6 +582,7 @@ fn run_check(dir: &Path, cpu_building: bool) -> Result<(), String> {
                 MultiresModel(patch),
                 MeshMaterial3d(grey),
                 Transform::from_xyz(9.0, 0.0, -6.0),
+                NoSharedLevels,
             ))
             .id(),
         world

@@ -2,10 +2,11 @@
 //! example.
 
 use bevy::prelude::*;
-use bevy_aslod::plugin::{MultiresMesh, MultiresModel};
+use bevy_aslod::plugin::{MultiresMesh, MultiresModel, NoSharedLevels};
 
 /// Adds `asset` and one default material to the app, and spawns a model of them at each of
-/// `at`.
+/// `at`, each on region meshes of its own ([`NoSharedLevels`]): the benches measure how
+/// levels reach each instance's meshes ([`RegionUpload`](bevy_aslod::plugin::RegionUpload)).
 pub fn spawn_models(app: &mut App, asset: MultiresMesh, at: impl IntoIterator<Item = Vec3>) {
     let world = app.world_mut();
     let handle = world.resource_mut::<Assets<MultiresMesh>>().add(asset);
@@ -17,6 +18,7 @@ pub fn spawn_models(app: &mut App, asset: MultiresMesh, at: impl IntoIterator<It
             MultiresModel(handle.clone()),
             MeshMaterial3d(material.clone()),
             Transform::from_translation(at),
+            NoSharedLevels,
         ));
     }
 }
