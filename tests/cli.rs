@@ -2,6 +2,9 @@
 
 use std::process::Command;
 
+#[path = "common/instancing.rs"]
+mod instancing;
+
 /// `aslod info` on an OBJ whose faces give normals to only some corners: the importer's
 /// warning reaches standard error.
 #[test]
@@ -68,6 +71,29 @@ fn extract_takes_counts_alone_and_refuses_an_error_with_regions() {
         both.status.code(),
         Some(2),
         "--counts and --triangles together"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `aslod info` counts the copies a node places through `EXT_mesh_gpu_instancing`.
+#[test]
+fn info_counts_gpu_instances() {
+    let dir = std::env::temp_dir().join(format!("bevy_aslod_cli_gpu_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let glb = dir.join("instanced.glb");
+    let at: Vec<[f32; 3]> = (0..5).map(|i| [i as f32 * 3.0, 0.0, 0.0]).collect();
+    std::fs::write(&glb, instancing::instanced_quads(&at, [0.0; 3], "")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_aslod"))
+        .arg("info")
+        .arg(&glb)
+        .output()
+        .expect("aslod runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    assert!(stdout.contains("triangles 10 "), "{stdout}");
+    assert!(
+        stdout.contains("(GPU instances, EXT_mesh_gpu_instancing: 5)"),
+        "{stdout}"
     );
     std::fs::remove_dir_all(&dir).ok();
 }

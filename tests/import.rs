@@ -1437,3 +1437,43 @@ fn tiny_triangles_are_kept_and_huge_coordinates_refused() {
         other => panic!("expected CoordinateOutOfRange at vertex 1, got {other:?}"),
     }
 }
+
+#[test]
+fn gpu_instancing_places_the_mesh_once_per_instance() {
+    use common::instancing::instanced_quads;
+    let translations = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 0.0, 10.0]];
+    let bytes = instanced_quads(&translations, [0.0, 5.0, 0.0], "");
+    let import = load_gltf_slice(&bytes, None).unwrap();
+    assert_eq!(import.gpu_instances, 3);
+    assert_eq!(import.primitives, 3);
+    assert_eq!(import.mesh.triangle_count(), 6);
+    let p = &import.mesh.positions;
+    // Node transform times each copy's: the first at the node, the third 10 along Z.
+    assert_eq!(p[1], Vec3::new(1.0, 5.0, 0.0));
+    assert_eq!(p[8 + 1], Vec3::new(1.0, 5.0, 10.0));
+    // The second turned a quarter about Y and doubled: (1, 0, 0) goes to (0, 0, -2).
+    assert!(
+        (p[4 + 1] - Vec3::new(10.0, 5.0, -2.0)).length() < 1e-5,
+        "{}",
+        p[5]
+    );
+
+    // An accessor of another type, or one the file lacks, is a named error.
+    let bad = instanced_quads(&translations, [0.0; 3], r#","SCALE":2"#);
+    let error = load_gltf_slice(&bad, None).unwrap_err().to_string();
+    assert!(error.contains("EXT_mesh_gpu_instancing"), "{error}");
+    let bad = instanced_quads(&translations, [0.0; 3], r#","SCALE":99"#);
+    let error = load_gltf_slice(&bad, None).unwrap_err().to_string();
+    assert!(error.contains("no accessor 99"), "{error}");
+
+    // The copies count against the limits before anything is decoded.
+    let many = vec![[0.0; 3]; 1_000];
+    let limits = LoadLimits {
+        triangles: 1_999,
+        ..LoadLimits::default()
+    };
+    let error = load_gltf_slice_with_limits(&instanced_quads(&many, [0.0; 3], ""), None, &limits)
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("triangles"), "{error}");
+}

@@ -1,6 +1,7 @@
 //! Mesh generators and topology checks shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod instancing;
 pub mod reseal;
 
 use bevy_aslod::mesh::{IndexedMesh, weld_positions};

@@ -73,7 +73,18 @@ pub(crate) fn info(input: &Path) -> CliResult {
     {
         return info_mrm(input);
     }
-    let mesh = load(input)?;
+    let is_gltf = input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
+    // A glTF scene: how many mesh primitives it places, and how many copies nodes place
+    // through `EXT_mesh_gpu_instancing` (each one is in the mesh, as a viewer draws it).
+    let (mesh, placed) = if is_gltf {
+        let import = bevy_aslod::mesh::load_gltf(input)?;
+        let placed = (import.primitives, import.gpu_instances);
+        (import.mesh, Some(placed))
+    } else {
+        (load(input)?, None)
+    };
     let start = Instant::now();
     let pm = build(&mesh)?;
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -85,6 +96,11 @@ pub(crate) fn info(input: &Path) -> CliResult {
         mesh.triangle_count(),
         mesh.vertex_count()
     );
+    if let Some((primitives, gpu_instances)) = placed {
+        println!(
+            "  placed primitives {primitives} (GPU instances, EXT_mesh_gpu_instancing: {gpu_instances})"
+        );
+    }
     println!(
         "  levels {} (base mesh {} triangles, base error {:.5} of the diagonal)",
         pm.level_count(),

@@ -41,6 +41,9 @@ pub struct GltfImport {
     pub dropped_attributes: Vec<String>,
     /// Number of triangle primitives flattened into the mesh (each instance counts).
     pub primitives: usize,
+    /// Copies of meshes placed by nodes through `EXT_mesh_gpu_instancing` (each placed
+    /// in the mesh, as the node's instances draw it), over all such nodes.
+    pub gpu_instances: usize,
     /// How many of those primitives have morph targets. Only their base shape is imported.
     pub morph_target_primitives: usize,
     /// Every skin of the document, in document order.
@@ -464,6 +467,7 @@ impl Builder {
             mesh,
             dropped_attributes: self.dropped.into_iter().collect(),
             primitives: self.primitives,
+            gpu_instances: 0,
             morph_target_primitives: self.morph_target_primitives,
             skins,
             report: ValidationReport::default(),

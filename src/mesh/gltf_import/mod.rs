@@ -100,15 +100,30 @@ pub fn load_gltf_slice_with_limits(
     LoadLimits::check("file_bytes", bytes.len() as u64, limits.file_bytes)?;
     let (document, bin) = parse(bytes, limits)?;
     let instances = collect_instances(&document)?;
-    let plan = Plan::check(&document, instances.iter().map(|i| i.mesh.clone()), limits)?;
+    let plan = Plan::check(
+        &document,
+        instances.iter().map(|i| (i.mesh.clone(), i.copies())),
+        instances
+            .iter()
+            .filter_map(|i| i.gpu.as_ref())
+            .flat_map(|g| g.accessors().cloned().collect::<Vec<_>>()),
+        limits,
+    )?;
     let (data, skins) = load(&document, bytes.len(), bin, base_dir, limits)?;
     let mut builder = Builder::new(&skins, &instances, &plan);
+    let mut gpu_instances = 0;
     for instance in &instances {
-        for primitive in instance.mesh.primitives() {
-            builder.add_primitive(&data, &primitive, instance)?;
+        if let Some(gpu) = &instance.gpu {
+            gpu_instances += gpu.count;
+        }
+        for placed in instance.placements(&data)? {
+            for primitive in placed.mesh.primitives() {
+                builder.add_primitive(&data, &primitive, &placed)?;
+            }
         }
     }
     let mut import = builder.finish(skins);
+    import.gpu_instances = gpu_instances;
     import.report = import.mesh.validate()?;
     Ok(import)
 }
@@ -212,7 +227,12 @@ pub fn load_gltf_primitives_with_limits(
     let bytes = limits.read_file(path)?;
     let (document, bin) = parse(&bytes, limits)?;
     // Each mesh is read once, whatever the nodes that show it.
-    Plan::check(&document, document.meshes(), limits)?;
+    Plan::check(
+        &document,
+        document.meshes().map(|mesh| (mesh, 1)),
+        [],
+        limits,
+    )?;
     let (data, skins) = load(&document, bytes.len(), bin, path.parent(), limits)?;
     let instances = collect_instances(&document)?;
     let mut out = Vec::new();
@@ -231,6 +251,7 @@ pub fn load_gltf_primitives_with_limits(
             mesh: mesh.clone(),
             skin,
             transform: Mat4::IDENTITY,
+            gpu: None,
         };
         for primitive in mesh.primitives() {
             let key = format!("Mesh{}/Primitive{}", mesh.index(), primitive.index());

@@ -22,8 +22,9 @@ pub(super) struct Plan {
 }
 
 impl Plan {
-    /// Sums what reading `meshes` (in the order and as many times as the import reads them)
-    /// and every skin of `document` asks for, and checks it against `limits`.
+    /// Sums what reading `meshes` (each with how many times the import reads it), the
+    /// `accessors` it reads besides (GPU instances), and every skin of `document` asks for,
+    /// and checks it against `limits`.
     ///
     /// # Errors
     /// [`MeshError::LimitExceeded`](crate::mesh::MeshError::LimitExceeded) naming the first
@@ -31,7 +32,8 @@ impl Plan {
     /// exceed.
     pub(super) fn check<'a>(
         document: &Document,
-        meshes: impl IntoIterator<Item = gltf::Mesh<'a>>,
+        meshes: impl IntoIterator<Item = (gltf::Mesh<'a>, u64)>,
+        accessors: impl IntoIterator<Item = Accessor<'a>>,
         limits: &LoadLimits,
     ) -> MeshResult<Self> {
         let mut plan = Self::default();
@@ -42,10 +44,23 @@ impl Plan {
                 plan.decode(&matrices)?;
             }
         }
-        for mesh in meshes {
+        for accessor in accessors {
+            plan.decode(&accessor)?;
+        }
+        for (mesh, times) in meshes {
+            let mut once = Self::default();
             for primitive in mesh.primitives() {
-                plan.add(&primitive)?;
+                once.add(&primitive)?;
             }
+            plan.vertices = plan
+                .vertices
+                .saturating_add(once.vertices.saturating_mul(times));
+            plan.triangles = plan
+                .triangles
+                .saturating_add(once.triangles.saturating_mul(times));
+            plan.decoded_bytes = plan
+                .decoded_bytes
+                .saturating_add(once.decoded_bytes.saturating_mul(times));
         }
         LoadLimits::check("vertices", plan.vertices, limits.vertices)?;
         LoadLimits::check("triangles", plan.triangles, limits.triangles)?;
