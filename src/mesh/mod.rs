@@ -22,6 +22,8 @@ pub use attributes::{
     AttributeFormat, COLOR_ID, STANDARD_IDS, Scalar, TANGENT_ID, UV_1_ID, VertexAttribute,
 };
 pub use error::{MeshError, MeshResult};
+#[cfg(feature = "gltf_instancing")]
+pub(crate) use gltf_import::gpu_instances;
 pub use gltf_import::{
     GltfImport, GltfPrimitive, GltfSkinInfo, load_gltf, load_gltf_primitives,
     load_gltf_primitives_with_limits, load_gltf_slice, load_gltf_slice_with_limits,

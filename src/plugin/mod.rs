@@ -64,6 +64,8 @@ mod control;
 pub mod diagnostics;
 mod error;
 mod geomorph;
+#[cfg(feature = "gltf_instancing")]
+mod gltf_instancing;
 mod instance;
 mod loader;
 mod materials;
@@ -101,7 +103,10 @@ pub use materials::MultiresMaterialPlugin;
 pub use messages::{MultiresBuildFailed, MultiresModelReady};
 pub use overlay::{MAX_OVERLAY_LABELS, OverlayLabel, OverlayStatus, status_line};
 pub use render::{RegionUpload, RegionUploadStats};
-pub use scene::{MultiresScene, MultiresSceneConverted, MultiresSceneModels, MultiresSourceMesh};
+pub use scene::{
+    GltfMeshInstances, MultiresScene, MultiresSceneConverted, MultiresSceneModels,
+    MultiresSourceMesh,
+};
 pub use sets::AslodSystems;
 pub use shared::{NoSharedLevels, SharedLevels};
 pub use skin::MultiresSkin;
@@ -229,6 +234,7 @@ impl Plugin for AslodPlugin {
             .register_type::<MultiresScene>()
             .register_type::<MultiresSceneModels>()
             .register_type::<MultiresSourceMesh>()
+            .register_type::<GltfMeshInstances>()
             .register_type::<MultiresSkin>()
             .register_type::<OverlayLabel>()
             .register_type::<OverlayStatus>()
@@ -250,6 +256,8 @@ impl Plugin for AslodPlugin {
             .init_resource::<materials::MaterialsGiven>()
             .init_resource::<shared::SharedMeshes>()
             .add_observer(spawn::remove_region_meshes);
+        #[cfg(feature = "gltf_instancing")]
+        gltf_instancing::register(app, self.load_limits);
         diagnostics::register(app);
         control::add(app);
         app.configure_sets(

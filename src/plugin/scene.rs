@@ -94,7 +94,8 @@ impl MultiresScene {
 pub struct MultiresSceneModels {
     /// Model roots of the skinned meshes (children of the original mesh entities).
     pub skinned: Vec<Entity>,
-    /// Unskinned mesh entities that became models in place.
+    /// Unskinned mesh entities that became models in place, and the models made for the
+    /// copies of a node with [`GltfMeshInstances`] (children of its mesh entities).
     pub rigid: Vec<Entity>,
     /// Meshes kept conventional (morph targets, or a build error), counted in the budget.
     pub fixed: Vec<Entity>,
@@ -108,6 +109,16 @@ impl MultiresSceneModels {
         self.skinned.iter().chain(&self.rigid).copied()
     }
 }
+
+/// The copies a glTF node places through `EXT_mesh_gpu_instancing`, each a transform in the
+/// node's space. Bevy 0.19's glTF loader ignores the extension and draws the node's mesh
+/// once; with the `gltf_instancing` feature (default) the plugin's loader extension puts
+/// this on the node's entity, and a [`MultiresScene`] makes one model per copy, children of
+/// the mesh entity (sharing their asset's level meshes). Without a `MultiresScene` nothing
+/// reads it. Skinned nodes ignore the extension.
+#[derive(Component, Reflect, Clone, Debug, Default, PartialEq)]
+#[reflect(Component, Default)]
+pub struct GltfMeshInstances(pub Vec<Transform>);
 
 /// The mesh an entity showed before it became multiresolution (kept, not dropped).
 #[derive(Component, Reflect, Clone, Debug, Default, PartialEq, Eq)]
@@ -327,6 +338,18 @@ impl SceneAssetCache {
 }
 
 /// The mesh entities of scenes, as `convert_scenes` reads them.
+/// Where [`GltfMeshInstances`] may be: on a mesh entity, or on its node (the parent of a
+/// primitive's entity).
+type GpuCopies<'w, 's> =
+    Query<'w, 's, (Option<&'static GltfMeshInstances>, Option<&'static ChildOf>)>;
+
+/// The copies placed of mesh entity `entity`'s mesh, if its node places any.
+fn copies_of<'a>(copies: &'a GpuCopies, entity: Entity) -> Option<&'a [Transform]> {
+    let (own, parent) = copies.get(entity).ok()?;
+    let found = own.or_else(|| copies.get(parent?.parent()).ok()?.0)?;
+    Some(&found.0)
+}
+
 type MeshEntities<'w, 's> = Query<
     'w,
     's,
@@ -353,6 +376,7 @@ pub(crate) fn convert_scenes(
     server: Res<AssetServer>,
     names: Query<&'static Name>,
     limits: Res<SceneLimits>,
+    copies: GpuCopies,
     mut messages: SceneMessages,
 ) {
     // Apps without skinning (no `Assets<SkinnedMeshInverseBindposes>`) can still convert
@@ -415,6 +439,7 @@ pub(crate) fn convert_scenes(
             geomorph,
             options,
             &mut messages.failed,
+            &copies,
         );
         messages.converted.write(MultiresSceneConverted {
             scene: root,
@@ -508,6 +533,7 @@ impl SceneAssetCache {
         geomorph: Option<&Geomorph>,
         options: &MultiresScene,
         failed: &mut MessageWriter<MultiresBuildFailed>,
+        copies: &GpuCopies,
     ) -> MultiresSceneModels {
         let mut result = MultiresSceneModels::default();
         for &entity in found {
@@ -567,16 +593,35 @@ impl SceneAssetCache {
                     result.skinned.push(model.id());
                     commands.entity(entity).remove::<Mesh3d>().insert(source);
                 }
-                None => {
-                    let mut model = commands.entity(entity);
-                    model
-                        .remove::<Mesh3d>()
-                        .insert((source, MultiresModel(handle)));
-                    if let Some(&geomorph) = geomorph {
-                        model.insert(geomorph);
+                None => match copies_of(copies, entity) {
+                    Some(placed) => {
+                        commands.entity(entity).remove::<Mesh3d>().insert(source);
+                        for &at in placed {
+                            let mut model = commands.spawn((
+                                MultiresModel(handle.clone()),
+                                at,
+                                ChildOf(entity),
+                            ));
+                            if let Some(material) = material {
+                                model.insert(material.clone());
+                            }
+                            if let Some(&geomorph) = geomorph {
+                                model.insert(geomorph);
+                            }
+                            result.rigid.push(model.id());
+                        }
                     }
-                    result.rigid.push(entity);
-                }
+                    None => {
+                        let mut model = commands.entity(entity);
+                        model
+                            .remove::<Mesh3d>()
+                            .insert((source, MultiresModel(handle)));
+                        if let Some(&geomorph) = geomorph {
+                            model.insert(geomorph);
+                        }
+                        result.rigid.push(entity);
+                    }
+                },
             }
         }
         result

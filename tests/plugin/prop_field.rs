@@ -7,7 +7,7 @@ use super::skinned::app;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
-    AslodStats, MultiresInstance, MultiresScene, MultiresSceneModels, PolygonBudget,
+    AslodStats, MultiresInstance, MultiresModel, MultiresScene, MultiresSceneModels, PolygonBudget,
 };
 
 #[path = "../../examples/common/field.rs"]
@@ -265,5 +265,58 @@ fn a_thousand_scene_instances_share_level_meshes_by_default() {
         "{} meshes in all",
         app.world().resource::<Assets<Mesh>>().len()
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[path = "../common/instancing.rs"]
+mod instancing;
+
+#[test]
+fn gpu_instanced_nodes_become_one_model_per_copy() {
+    let dir = std::env::temp_dir().join(format!("aslod-gpu-field-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let at: Vec<[f32; 3]> = (0..20).map(|i| [i as f32 * 3.0, 0.0, 0.0]).collect();
+    let node_at = [0.0, 2.0, 0.0];
+    std::fs::write(
+        dir.join("field.glb"),
+        instancing::instanced_quads(&at, node_at, ""),
+    )
+    .unwrap();
+    let mut app = app(10_000, dir.to_str().unwrap());
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Transform::from_xyz(-5.0, 5.0, 5.0).looking_at(Vec3::new(30.0, 0.0, 0.0), Vec3::Y),
+    ));
+    let models = spawn_field(&mut app);
+    assert_eq!(models.len(), 20, "one model per copy, none for the node");
+    for _ in 0..3 {
+        app.update();
+    }
+    // Each at the node's transform times its copy's (the second copy also turned and
+    // scaled).
+    let mut placed: Vec<Vec3> = models
+        .iter()
+        .map(|&m| app.world().get::<GlobalTransform>(m).unwrap().translation())
+        .collect();
+    placed.sort_by(|a, b| a.x.total_cmp(&b.x));
+    for (p, t) in placed.iter().zip(&at) {
+        assert_eq!(*p, Vec3::from(*t) + Vec3::from(node_at));
+    }
+    let second = models
+        .iter()
+        .map(|&m| app.world().get::<GlobalTransform>(m).unwrap())
+        .find(|g| g.translation().x == 3.0)
+        .unwrap();
+    assert!((second.scale() - Vec3::splat(2.0)).length() < 1e-5);
+    // They share one asset's level meshes, and draw the 20 copies (those in view at full
+    // detail, two triangles; one out of view may show its coarsest level, one).
+    let stats = app.world().resource::<AslodStats>();
+    assert!((36..=40).contains(&stats.triangles), "{}", stats.triangles);
+    assert!(stats.shared_meshes >= 1);
+    let assets: std::collections::HashSet<_> = models
+        .iter()
+        .map(|&m| app.world().get::<MultiresModel>(m).unwrap().0.id())
+        .collect();
+    assert_eq!(assets.len(), 1);
     std::fs::remove_dir_all(&dir).ok();
 }

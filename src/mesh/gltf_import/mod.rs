@@ -128,6 +128,48 @@ pub fn load_gltf_slice_with_limits(
     Ok(import)
 }
 
+/// Per node that places its unskinned mesh through `EXT_mesh_gpu_instancing`: the node's
+/// index and each copy's transform in the node's space, decoded from `buffers` (the
+/// document's, in order, as Bevy's glTF loader holds them).
+///
+/// # Errors
+/// A malformed extension or accessor (named), or more copies in all than
+/// [`LoadLimits::triangles`] (each copy draws at least one triangle).
+#[cfg(feature = "gltf_instancing")]
+pub(crate) fn gpu_instances(
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    limits: &LoadLimits,
+) -> MeshResult<Vec<(usize, Vec<Mat4>)>> {
+    let data = Data {
+        buffers: buffers
+            .iter()
+            .map(|b| std::borrow::Cow::Borrowed(b.as_slice()))
+            .collect(),
+    };
+    let mut out = Vec::new();
+    let mut copies = 0u64;
+    for node in document.nodes() {
+        let (Some(mesh), None) = (node.mesh(), node.skin()) else {
+            continue;
+        };
+        let Some(gpu) = scene::gpu_instancing(document, &node)? else {
+            continue;
+        };
+        copies += gpu.count as u64;
+        LoadLimits::check("triangles", copies, limits.triangles)?;
+        let instance = scene::Instance {
+            mesh,
+            skin: None,
+            transform: Mat4::IDENTITY,
+            gpu: Some(gpu),
+        };
+        let placed = instance.placements(&data)?;
+        out.push((node.index(), placed.iter().map(|p| p.transform).collect()));
+    }
+    Ok(out)
+}
+
 /// The document, its JSON within [`LoadLimits::json_bytes`], and the GLB `BIN` chunk if
 /// there is one.
 fn parse<'a>(
