@@ -53,8 +53,9 @@ test: deps check-deps
 # bevy_mikktspace, which Bevy has anyway, and crc32fast, which gltf's PNG decoder has), so no
 # meshopt (a C++ build), clap or indicatif: those are the `cli` feature's.
 DEFAULT_DEPS := bevy bevy_mikktspace bytemuck crc32fast glam gltf half log thiserror
-# The Bevy features the plugin asks for (Cargo.toml): no windowing, input, UI or audio.
-BEVY_FEATURES := async_executor bevy_asset bevy_core_pipeline bevy_gizmos bevy_log bevy_pbr bevy_render multi_threaded std
+# The Bevy features the plugin asks for (Cargo.toml; bevy_gltf for `gltf_instancing`): no
+# windowing, input, UI or audio.
+BEVY_FEATURES := async_executor bevy_asset bevy_core_pipeline bevy_gizmos bevy_gltf bevy_log bevy_pbr bevy_render multi_threaded std
 check-deps:
 	@direct=$$($(CARGO) tree -e normal --depth 1 --prefix none --format '{p}' | sed 1d | cut -d' ' -f1 | sort -u | tr '\n' ' '); \
 	if [ "$$direct" != "$(DEFAULT_DEPS) " ]; then \
