@@ -6,7 +6,7 @@ APT_PACKAGES := pkg-config libwayland-dev libxkbcommon-dev libasound2-dev libude
 TESTDATA     := ../shared/testdata
 CARGO        ?= cargo
 
-.PHONY: demo silvretta test check-deps deps lint bench bench-bevy bench-render bench-instances soak figure-11 compare
+.PHONY: demo silvretta test check-deps deps lint bench bench-bevy bench-render bench-instances bench-instance-cost soak figure-11 compare
 
 deps:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -99,6 +99,10 @@ soak:
 # (release: our code and Bevy's at the same optimisation).
 bench-instances: deps
 	xvfb-run -a $(CARGO) run --release --example render_cost -- --instances 1000,10000 --crowd 100 --frames 30
+
+# The per-instance CPU cost without a renderer: the plugin against Bevy's frustum culling.
+bench-instance-cost:
+	$(CARGO) run --release --example instance_cost -- --counts 1000,10000,100000 --frames 30
 
 # ASLOD Figure 11 measured (docs/performance.md): the aerobic class at 960x540 (lavapipe is
 # bound by pixels there) and 240x135 (by geometry), 5 interleaved runs each, and the
