@@ -353,9 +353,10 @@ struct ModelInputs<'a> {
 impl ModelInputs<'_> {
     /// The model's [`RegionInput`]s: each region's box, its largest weighted projected area
     /// over the cameras that draw its layers (skipped without LOD, which does not use it), the
-    /// model's priority. Unskinned
-    /// boxes stay in the model's space and the cameras move into it (four boxes at a time,
-    /// see [`ProjectedAreaCamera::projected_areas`]); skinned ones are already in the world.
+    /// model's priority. Unskinned boxes of models with more than two regions stay in the
+    /// model's space and the cameras move into it (four boxes at a time, see
+    /// [`ProjectedAreaCamera::projected_areas`]); skinned ones are already in the world, and
+    /// one or two boxes move there.
     /// Returns the sum of the regions' areas (0 out of view or at full detail).
     fn fill(
         &self,
@@ -379,14 +380,17 @@ impl ModelInputs<'_> {
         // Every region box lies inside the model's box: when that one is out of every view,
         // so are they (skinned regions move with their bones, so not for them). The world box
         // contains the model's box, so this never culls a visible model.
-        let culled = !full_detail && skinned.is_none() && {
+        // One or two boxes are cheaper moved into the world than the cameras into the
+        // model's space (an f64 inverse per camera), and out of view their areas are zero.
+        let few = instance.obbs.len() <= 2;
+        let culled = !full_detail && skinned.is_none() && !few && {
             let bounds = instance.bounds.transformed(&affine);
             !cameras.iter().any(|cam| cam.may_see(&bounds))
         };
         // Model space needs an invertible transform; a flattened model (a zero scale on one
         // axis, still drawn as a sheet) keeps world-space boxes.
         local.clear();
-        let in_model = skinned.is_none() && !full_detail && !culled && {
+        let in_model = skinned.is_none() && !full_detail && !culled && !few && {
             local.extend(cameras.iter().filter_map(|cam| cam.for_model(&affine)));
             local.len() == cameras.len()
         };

@@ -43,17 +43,25 @@ pub(crate) struct SyncTime(f64);
 pub(crate) fn sync_geomorphs(
     mut spent: ResMut<SyncTime>,
     mut commands: Commands,
-    mut models: Query<(
-        Entity,
-        &MultiresInstance,
-        Option<&Geomorph>,
-        Has<GpuGeomorph>,
-        Has<SkinState>,
-        Option<&mut RegionGeomorphs>,
-        Option<&mut RegionStaging>,
-        Option<&mut ViewDependentState>,
-        Has<SharedState>,
-    )>,
+    mut models: Query<
+        (
+            Entity,
+            &MultiresInstance,
+            Option<&Geomorph>,
+            Has<GpuGeomorph>,
+            Has<SkinState>,
+            Option<&mut RegionGeomorphs>,
+            Option<&mut RegionStaging>,
+            Option<&mut ViewDependentState>,
+            Has<SharedState>,
+        ),
+        // The others have no geomorph to start, change or end.
+        Or<(
+            With<Geomorph>,
+            With<RegionGeomorphs>,
+            With<ViewDependentState>,
+        )>,
+    >,
 ) {
     let start = Instant::now();
     for (entity, instance, geomorph, gpu, skinned, morphs, staging, view, shared) in &mut models {

@@ -484,15 +484,19 @@ pub(super) fn mark_shared_changed(
 #[allow(clippy::type_complexity)]
 pub(super) fn sync_view_dependent(
     mut commands: Commands,
-    mut models: Query<(
-        Entity,
-        &mut MultiresInstance,
-        &MultiresModel,
-        Option<Ref<ViewDependent>>,
-        Option<&mut ViewDependentState>,
-        Option<&mut RegionStaging>,
-        Has<SkinState>,
-    )>,
+    mut models: Query<
+        (
+            Entity,
+            &mut MultiresInstance,
+            &MultiresModel,
+            Option<Ref<ViewDependent>>,
+            Option<&mut ViewDependentState>,
+            Option<&mut RegionStaging>,
+            Has<SkinState>,
+        ),
+        // The others have no refinement to start or stop.
+        Or<(With<ViewDependent>, With<ViewDependentState>)>,
+    >,
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut warned: Local<EntityHashSet>,
