@@ -31,7 +31,7 @@ use bevy_aslod::bevy_mesh::from_bevy_mesh;
 use bevy_aslod::multires::BuildOptions;
 use bevy_aslod::plugin::{
     AslodPlugin, FullDetail, MultiresInstance, MultiresScene, MultiresSceneConverted,
-    MultiresSceneModels, MultiresSourceMesh, PolygonBudget, RegionSplit,
+    MultiresSceneModels, MultiresSourceMesh, NoSharedLevels, PolygonBudget, RegionSplit,
 };
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -104,6 +104,11 @@ struct Args {
     /// show nothing and leave their share of the budget to the others (default: off).
     #[arg(long, default_value_t = 0.0)]
     min_pixels: f32,
+    /// With `--copies`: time this many frames (medians, ms) of plain Bevy and of ours at
+    /// full detail (the same triangles), sharing level meshes (the default) and with a mesh
+    /// of its own per model (`NoSharedLevels`), each once its view is settled.
+    #[arg(long, default_value_t = 0)]
+    frame_times: usize,
     /// With `--copies`: metres between neighbouring copies.
     #[arg(long, default_value_t = 1.5)]
     spacing: f32,
@@ -172,6 +177,7 @@ fn run(args: &Args) -> Result<(), String> {
     let mut pictures = Vec::new();
     let mut coarse_attributes = Vec::new();
     let view_count = if args.copies > 1 { 1 } else { args.views };
+    let mut frame_report = serde_json::Value::Null;
     for k in 0..view_count {
         let azimuth = std::f32::consts::TAU * k as f32 / args.views as f32 + 0.4;
         let elevation: f32 = if k % 2 == 0 { 0.35 } else { -0.15 };
@@ -204,6 +210,17 @@ fn run(args: &Args) -> Result<(), String> {
         stage.show(false, true);
         stage.set_full_detail(true);
         let ours_full = stage.capture_stable()?;
+        if args.copies > 1 && args.frame_times > 0 && k == 0 {
+            let [plain, shared, own] = stage.frame_times(args.frame_times)?;
+            println!(
+                "{} copies, {full} triangles, frame medians of {} frames: plain Bevy                  {plain:.1} ms, ours sharing level meshes {shared:.1} ms ({:.2}x), ours with a                  mesh per model {own:.1} ms ({:.2}x)",
+                side * side,
+                args.frame_times,
+                shared / plain,
+                own / plain
+            );
+            frame_report = json!({ "plain_ms": plain, "shared_ms": shared, "own_ms": own });
+        }
         let (max, fraction) = common::compare(&reference, &ours_full);
         let (psnr, mad) = common::psnr_mad(&reference, &ours_full);
         let mut rows = Vec::new();
@@ -297,6 +314,7 @@ fn run(args: &Args) -> Result<(), String> {
         "peer_weights": PEER_WEIGHTS,
         "attribute_weights": [options.normal_weight, options.uv_weight, options.color_weight],
         "views": views,
+        "frame_times": frame_report,
         "summary": summary(&views, &args.ratios),
         "coarse_attributes": coarse_attributes,
     });
@@ -410,6 +428,51 @@ impl Stage {
         let world = self.app.world_mut();
         world.entity_mut(self.plain).insert(visibility(plain));
         world.entity_mut(self.ours).insert(visibility(ours));
+    }
+
+    /// The median of `n` frames' wall time (ms), after three to settle.
+    fn median_frame(&mut self, n: usize) -> f64 {
+        for _ in 0..3 {
+            self.app.update();
+        }
+        let mut times: Vec<f64> = (0..n)
+            .map(|_| {
+                let start = Instant::now();
+                self.app.update();
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times[times.len() / 2]
+    }
+
+    /// Frame medians of `n` frames, each once its view is settled: plain Bevy, ours as it
+    /// is (the caller's `FullDetail` and budget), and ours with `NoSharedLevels` on every
+    /// model (taken off again after).
+    fn frame_times(&mut self, n: usize) -> Result<[f64; 3], String> {
+        self.show(true, false);
+        self.capture_stable()?;
+        let plain = self.median_frame(n);
+        self.show(false, true);
+        self.capture_stable()?;
+        let shared = self.median_frame(n);
+        let models = self.models();
+        for &model in &models {
+            self.app
+                .world_mut()
+                .entity_mut(model)
+                .insert(NoSharedLevels);
+        }
+        self.capture_stable()?;
+        let own = self.median_frame(n);
+        for &model in &models {
+            self.app
+                .world_mut()
+                .entity_mut(model)
+                .remove::<NoSharedLevels>();
+        }
+        self.capture_stable()?;
+        Ok([plain, shared, own])
     }
 
     fn set_full_detail(&mut self, on: bool) {
