@@ -213,7 +213,9 @@ fn run(args: &Args) -> Result<(), String> {
         if args.copies > 1 && args.frame_times > 0 && k == 0 {
             let [plain, shared, own] = stage.frame_times(args.frame_times)?;
             println!(
-                "{} copies, {full} triangles, frame medians of {} frames: plain Bevy                  {plain:.1} ms, ours sharing level meshes {shared:.1} ms ({:.2}x), ours with a                  mesh per model {own:.1} ms ({:.2}x)",
+                "{} copies, {full} triangles, frame medians of {} frames: plain Bevy {plain:.1} ms, \
+                 ours sharing level meshes {shared:.1} ms ({:.2}x), ours with a mesh per model \
+                 {own:.1} ms ({:.2}x)",
                 side * side,
                 args.frame_times,
                 shared / plain,
