@@ -15,6 +15,7 @@ mod limits;
 mod obj;
 mod ply;
 mod tangents;
+mod vertex_cache;
 pub(crate) mod weld;
 
 pub(crate) use attributes::gather_all;
@@ -34,6 +35,7 @@ pub use obj::{
     MAX_CONCAVE_CORNERS, load_obj, parse_obj, parse_obj_with_limits, write_obj, write_obj_groups,
 };
 pub use ply::{load_ply, parse_ply, parse_ply_with_limits};
+pub use vertex_cache::{optimize_vertex_cache, vertex_cache_misses};
 pub use weld::{WeldMap, weld_positions, weld_positions_within};
 
 use glam::{Vec2, Vec3, Vec4};

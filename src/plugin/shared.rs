@@ -18,7 +18,7 @@ use super::asset::MultiresMesh;
 use super::components::LodRegion;
 use super::instance::MultiresInstance;
 use crate::bevy_mesh::to_bevy_mesh;
-use crate::mesh::IndexedMesh;
+use crate::mesh::{IndexedMesh, optimize_vertex_cache};
 use crate::regions::{RegionCaches, RegionMesh};
 use bevy::asset::AssetId;
 use bevy::camera::primitives::Aabb;
@@ -365,9 +365,9 @@ impl SharedUpload<'_, '_, '_> {
     }
 }
 
-/// The Bevy mesh of region `r` at the caches' current levels: only the vertices its
-/// triangles use (in their order in the region's vertex table), 16-bit indices where they
-/// fit.
+/// The Bevy mesh of region `r` at the caches' current levels: its triangles reordered for
+/// the vertex cache ([`optimize_vertex_cache`]; the collapse order scatters them), only the
+/// vertices they use, in the order they are first used, 16-bit indices where they fit.
 fn level_mesh(
     regions: &RegionMesh,
     caches: &mut RegionCaches,
@@ -376,19 +376,16 @@ fn level_mesh(
 ) -> Mesh {
     caches.write_indices(regions, r, indices);
     let table = regions.regions()[r].progressive_mesh().vertices();
+    optimize_vertex_cache(indices, table.vertex_count());
     let mut remap = vec![u32::MAX; table.vertex_count()];
-    for &i in indices.iter() {
-        remap[i as usize] = 0;
-    }
     let mut used = Vec::new();
-    for (v, slot) in remap.iter_mut().enumerate() {
-        if *slot == 0 {
-            *slot = used.len() as u32;
-            used.push(v as u32);
-        }
-    }
     for i in indices.iter_mut() {
-        *i = remap[*i as usize];
+        let slot = &mut remap[*i as usize];
+        if *slot == u32::MAX {
+            *slot = used.len() as u32;
+            used.push(*i);
+        }
+        *i = *slot;
     }
     let vertices = IndexedMesh {
         joints: None,
