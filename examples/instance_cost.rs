@@ -218,14 +218,8 @@ fn run(n: usize, spec: PartitionSpec, frames: usize) -> Result<Row, String> {
 fn main() -> Result<(), String> {
     let args = Args::parse();
     println!(
-        "instance_cost: a 20,480-triangle sphere, all instances in view, no renderer, 200 triangles per instance; {} build, {}, {} cores",
-        if cfg!(debug_assertions) {
-            "debug"
-        } else {
-            "release"
-        },
-        common::cpu_name(),
-        std::thread::available_parallelism().map_or(0, usize::from)
+        "instance_cost: a 20,480-triangle sphere, all instances in view, no renderer, 200 triangles per instance; {}",
+        common::machine()
     );
     println!(
         "| regions | instances | triangles | ours ms | CheckVisibility ms | ours / CheckVisibility | ours µs per instance | CheckVisibility µs per instance | KB per instance | allocation ms | update ms |"

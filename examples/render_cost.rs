@@ -1327,14 +1327,8 @@ const ERROR_VIEWS: [f32; 3] = [0.2, 0.5, 0.8];
 
 fn run_instances(counts: &[usize], crowd: Option<usize>, frames: usize) -> Result<(), String> {
     println!(
-        "render_cost --instances: a 20,480-triangle sphere, a crowd of mannequins (30,180 triangles, skinned, dancing), 32x18 target, image error at 1280x720; {} build, {}, {} cores",
-        if cfg!(debug_assertions) {
-            "debug"
-        } else {
-            "release"
-        },
-        common::cpu_name(),
-        std::thread::available_parallelism().map_or(0, usize::from)
+        "render_cost --instances: a 20,480-triangle sphere, a crowd of mannequins (30,180 triangles, skinned, dancing), 32x18 target, image error at 1280x720; {}",
+        common::machine()
     );
     println!(
         "| scene | instances | way | budget | ours ms | Bevy visibility ms | render world ms | mesh bytes | triangles visible | mesh entities visible | frame ms | PSNR against (a), median of 3 views (worst) |"

@@ -463,6 +463,20 @@ pub fn wait_until_drawn(
     ))
 }
 
+/// The build and the machine, for a bench's title: `release build, <CPU>, N cores`.
+pub fn machine() -> String {
+    format!(
+        "{} build, {}, {} cores",
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        },
+        cpu_name(),
+        std::thread::available_parallelism().map_or(0, usize::from)
+    )
+}
+
 /// The CPU's model name.
 pub fn cpu_name() -> String {
     std::fs::read_to_string("/proc/cpuinfo")
