@@ -54,6 +54,9 @@ pub(super) struct ModelToBuild {
     rebuild: Has<Rebuild>,
 }
 
+/// The models [`spawn_regions`] builds this frame.
+type ToBuild<'w, 's> = Query<'w, 's, ModelToBuild, Or<(Without<MultiresInstance>, With<Rebuild>)>>;
+
 /// What decides how a built model shares: see [`ladder`].
 type SharingOf = (
     Entity,
@@ -72,7 +75,7 @@ type SharingOf = (
 /// models: the first instance of an asset that gets a second is rebuilt to share.
 pub(super) fn spawn_regions(
     mut commands: Commands,
-    models: Query<ModelToBuild, Or<(Without<MultiresInstance>, With<Rebuild>)>>,
+    models: ToBuild,
     built: Query<SharingOf, Without<Rebuild>>,
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -193,7 +196,7 @@ pub(super) fn spawn_regions(
 /// Per asset, the models that will show it once `models` are built: those built, and each
 /// new one whose asset is loaded (a model rebuilt for the asset it showed counts once).
 fn instances_once_built(
-    models: &Query<ModelToBuild, Or<(Without<MultiresInstance>, With<Rebuild>)>>,
+    models: &ToBuild,
     assets: &Assets<MultiresMesh>,
     table: &SharedMeshes,
 ) -> HashMap<AssetId<MultiresMesh>, u32> {
@@ -431,6 +434,14 @@ fn region_caches(regions: &RegionMesh, shared: bool) -> RegionCaches {
     }
 }
 
+/// The components whose removal may change how a model shares.
+#[derive(bevy::ecs::system::SystemParam)]
+pub(super) struct RemovedSharing<'w, 's> {
+    ladders: RemovedComponents<'w, 's, SharedLevels>,
+    opt_outs: RemovedComponents<'w, 's, NoSharedLevels>,
+    geomorphs: RemovedComponents<'w, 's, Geomorph>,
+}
+
 /// Every built model whose [`SharedLevels`] came, changed or went, or whose
 /// [`NoSharedLevels`] or [`Geomorph`] came or went, is marked [`Rebuild`] when [`ladder`]
 /// now says otherwise than how it shares: its regions move between their own meshes and the
@@ -449,17 +460,16 @@ pub(super) fn mark_shared_changed(
             )>,
         ),
     >,
-    mut removed_ladders: RemovedComponents<SharedLevels>,
-    mut removed_opt_outs: RemovedComponents<NoSharedLevels>,
-    mut removed_geomorphs: RemovedComponents<Geomorph>,
+    mut removed: RemovedSharing,
     built: Query<SharingOf, Without<Rebuild>>,
     assets: Res<Assets<MultiresMesh>>,
     table: Res<SharedMeshes>,
 ) {
-    let removed = removed_ladders
+    let removed = removed
+        .ladders
         .read()
-        .chain(removed_opt_outs.read())
-        .chain(removed_geomorphs.read());
+        .chain(removed.opt_outs.read())
+        .chain(removed.geomorphs.read());
     for model in changed.iter().chain(removed) {
         let Ok((entity, instance, explicit, opted_out, geomorph, state)) = built.get(model) else {
             continue;

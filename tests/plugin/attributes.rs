@@ -20,7 +20,7 @@ use std::time::Duration;
 
 #[allow(unused_imports)]
 #[path = "../common/mod.rs"]
-mod common;
+pub(crate) mod common;
 
 const SOURCE_ID: &str = "Vertex_SourceId";
 

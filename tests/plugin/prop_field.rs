@@ -3,6 +3,7 @@
 //! `MultiresScene`. The budget of 50,000 triangles holds every frame, the near copies keep
 //! far more than the far ones, and `PolygonBudget::min_pixels` leaves the smallest out.
 
+use super::attributes::common::instancing;
 use super::skinned::app;
 use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
@@ -267,9 +268,6 @@ fn a_thousand_scene_instances_share_level_meshes_by_default() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
-
-#[path = "../common/instancing.rs"]
-mod instancing;
 
 #[test]
 fn gpu_instanced_nodes_become_one_model_per_copy() {
