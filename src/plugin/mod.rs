@@ -206,38 +206,11 @@ impl AslodPlugin {
 
 impl Plugin for AslodPlugin {
     fn build(&self, app: &mut App) {
+        register_types(app);
         app.init_asset::<MultiresMesh>()
             .register_asset_loader(MrmLoader {
                 limits: self.load_limits,
             })
-            .register_type::<PolygonBudget>()
-            .register_type::<FullDetail>()
-            .register_type::<AslodOverlay>()
-            .register_type::<AslodStats>()
-            .register_type::<FrameSource>()
-            .register_type::<AslodViewport>()
-            .register_type::<RegionUpload>()
-            .register_type::<RegionUploadStats>()
-            .register_type::<MultiresModel>()
-            .register_type::<LodPriority>()
-            .register_type::<LodRegion>()
-            .register_type::<CountInBudget>()
-            .register_type::<VariableLevel>()
-            .register_type::<Geomorph>()
-            .register_type::<GpuGeomorph>()
-            .register_type::<SharedLevels>()
-            .register_type::<NoSharedLevels>()
-            .register_type::<ViewDependent>()
-            .register_type::<RefineCamera>()
-            .register_type::<NoLodAllocation>()
-            .register_type::<LodCameraWeight>()
-            .register_type::<MultiresScene>()
-            .register_type::<MultiresSceneModels>()
-            .register_type::<MultiresSourceMesh>()
-            .register_type::<GltfMeshInstances>()
-            .register_type::<MultiresSkin>()
-            .register_type::<OverlayLabel>()
-            .register_type::<OverlayStatus>()
             .add_message::<MultiresModelReady>()
             .add_message::<MultiresBuildFailed>()
             .add_message::<MultiresSceneConverted>()
@@ -341,4 +314,36 @@ impl Plugin for AslodPlugin {
             );
         }
     }
+}
+
+/// Registers the plugin's reflected types.
+fn register_types(app: &mut App) {
+    app.register_type::<PolygonBudget>()
+        .register_type::<FullDetail>()
+        .register_type::<AslodOverlay>()
+        .register_type::<AslodStats>()
+        .register_type::<FrameSource>()
+        .register_type::<AslodViewport>()
+        .register_type::<RegionUpload>()
+        .register_type::<RegionUploadStats>()
+        .register_type::<MultiresModel>()
+        .register_type::<LodPriority>()
+        .register_type::<LodRegion>()
+        .register_type::<CountInBudget>()
+        .register_type::<VariableLevel>()
+        .register_type::<Geomorph>()
+        .register_type::<GpuGeomorph>()
+        .register_type::<SharedLevels>()
+        .register_type::<NoSharedLevels>()
+        .register_type::<ViewDependent>()
+        .register_type::<RefineCamera>()
+        .register_type::<NoLodAllocation>()
+        .register_type::<LodCameraWeight>()
+        .register_type::<MultiresScene>()
+        .register_type::<MultiresSceneModels>()
+        .register_type::<MultiresSourceMesh>()
+        .register_type::<GltfMeshInstances>()
+        .register_type::<MultiresSkin>()
+        .register_type::<OverlayLabel>()
+        .register_type::<OverlayStatus>();
 }
