@@ -25,7 +25,7 @@ const CACHE: u32 = 16;
 /// }
 /// let before = vertex_cache_misses(&indices, 16);
 /// optimize_vertex_cache(&mut indices, 202);
-/// assert!(vertex_cache_misses(&indices, 16) < before / 2);
+/// assert!(vertex_cache_misses(&indices, 16) < before / 2.0);
 /// ```
 pub fn optimize_vertex_cache(indices: &mut [u32], vertex_count: usize) {
     let corners = indices.len() / 3 * 3;
