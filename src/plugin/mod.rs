@@ -261,11 +261,18 @@ impl Plugin for AslodPlugin {
             PostUpdate,
             (
                 (
-                    scene::convert_scenes,
-                    shared::forget_dropped,
-                    spawn::mark_modified,
-                    spawn::mark_handle_changed,
-                    spawn::mark_shared_changed,
+                    // What marks models for `spawn_regions` (new scene models, `Rebuild`)
+                    // needs one sync point before it, not one after each: none of them reads
+                    // what another's commands write.
+                    (
+                        scene::convert_scenes,
+                        shared::forget_dropped,
+                        spawn::mark_modified,
+                        spawn::mark_handle_changed,
+                        spawn::mark_shared_changed,
+                    )
+                        .chain_ignore_deferred(),
+                    ApplyDeferred,
                     spawn::spawn_regions,
                     spawn::report_failed_loads,
                     spawn::sync_view_dependent,
