@@ -2,8 +2,8 @@
 
 use std::process::Command;
 
-#[path = "common/instancing.rs"]
-mod instancing;
+mod common;
+use common::instancing;
 
 /// `aslod info` on an OBJ whose faces give normals to only some corners: the importer's
 /// warning reaches standard error.

@@ -576,38 +576,33 @@ impl SceneAssetCache {
             match skin {
                 Some(skin) => {
                     result.more_than_two += more_than_two;
-                    let mut model = commands.spawn((
-                        MultiresModel(handle),
-                        MultiresSkin {
-                            joints: skin.joints.clone(),
-                        },
+                    let model = child_model(
+                        commands,
+                        handle,
                         Transform::IDENTITY,
-                        ChildOf(entity),
-                    ));
-                    if let Some(material) = material {
-                        model.insert(material.clone());
-                    }
-                    if let Some(&geomorph) = geomorph {
-                        model.insert(geomorph);
-                    }
-                    result.skinned.push(model.id());
+                        entity,
+                        material,
+                        geomorph,
+                    )
+                    .insert(MultiresSkin {
+                        joints: skin.joints.clone(),
+                    })
+                    .id();
+                    result.skinned.push(model);
                     commands.entity(entity).remove::<Mesh3d>().insert(source);
                 }
                 None => match copies_of(copies, entity) {
                     Some(placed) => {
                         commands.entity(entity).remove::<Mesh3d>().insert(source);
                         for &at in placed {
-                            let mut model = commands.spawn((
-                                MultiresModel(handle.clone()),
+                            let model = child_model(
+                                commands,
+                                handle.clone(),
                                 at,
-                                ChildOf(entity),
-                            ));
-                            if let Some(material) = material {
-                                model.insert(material.clone());
-                            }
-                            if let Some(&geomorph) = geomorph {
-                                model.insert(geomorph);
-                            }
+                                entity,
+                                material,
+                                geomorph,
+                            );
                             result.rigid.push(model.id());
                         }
                     }
@@ -626,6 +621,26 @@ impl SceneAssetCache {
         }
         result
     }
+}
+
+/// Spawns a model of `handle` at `at` under mesh entity `parent`, with the mesh's material
+/// and the scene's geomorph.
+fn child_model<'a>(
+    commands: &'a mut Commands,
+    handle: Handle<MultiresMesh>,
+    at: Transform,
+    parent: Entity,
+    material: Option<&MeshMaterial3d<StandardMaterial>>,
+    geomorph: Option<&Geomorph>,
+) -> EntityCommands<'a> {
+    let mut model = commands.spawn((MultiresModel(handle), at, ChildOf(parent)));
+    if let Some(material) = material {
+        model.insert(material.clone());
+    }
+    if let Some(&geomorph) = geomorph {
+        model.insert(geomorph);
+    }
+    model
 }
 
 /// A [`MultiresScene`] is converted: the same

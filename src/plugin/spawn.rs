@@ -22,7 +22,7 @@ use bevy::camera::primitives::{Aabb, MeshAabb};
 use bevy::camera::visibility::RenderLayers;
 use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
 use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
-use bevy::ecs::query::QueryData;
+use bevy::ecs::query::{QueryData, QueryItem};
 use bevy::mesh::Indices;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -229,26 +229,27 @@ fn share_first_instances(
     if !totals.keys().any(growing) {
         return;
     }
-    for (entity, instance, explicit, opted_out, geomorph, state) in built {
-        let Some(&total) = totals.get(&instance.asset) else {
-            continue;
-        };
-        let wanted = ladder(
-            explicit.copied(),
-            opted_out,
-            geomorph,
-            is_skinned(assets, instance.asset),
-            total,
-        );
-        if state.is_none() && wanted.is_some() {
-            commands.entity(entity).insert(Rebuild);
+    for model in built {
+        if let Some(&total) = totals.get(&model.1.asset)
+            && shares_otherwise(&model, assets, total)
+        {
+            commands.entity(model.0).insert(Rebuild);
         }
     }
 }
 
-/// Whether asset `id` is skinned (`false` once it is gone).
-fn is_skinned(assets: &Assets<MultiresMesh>, id: AssetId<MultiresMesh>) -> bool {
-    assets.get(id).is_some_and(|asset| asset.skin().is_some())
+/// Whether a built model shares otherwise than [`ladder`] says it should once its asset
+/// has `instances` built models.
+fn shares_otherwise(
+    (_, instance, explicit, opted_out, geomorph, state): &QueryItem<SharingOf>,
+    assets: &Assets<MultiresMesh>,
+    instances: u32,
+) -> bool {
+    let skinned = assets
+        .get(instance.asset)
+        .is_some_and(|asset| asset.skin().is_some());
+    let wanted = ladder(explicit.copied(), *opted_out, *geomorph, skinned, instances);
+    state.map(|s| s.ladder) != wanted
 }
 
 /// Writes a [`MultiresBuildFailed`] for each model whose asset failed to load (once per
@@ -471,18 +472,10 @@ pub(super) fn mark_shared_changed(
         .chain(removed.opt_outs.read())
         .chain(removed.geomorphs.read());
     for model in changed.iter().chain(removed) {
-        let Ok((entity, instance, explicit, opted_out, geomorph, state)) = built.get(model) else {
-            continue;
-        };
-        let wanted = ladder(
-            explicit.copied(),
-            opted_out,
-            geomorph,
-            is_skinned(&assets, instance.asset),
-            table.instances(instance.asset),
-        );
-        if state.map(|s| s.ladder) != wanted {
-            commands.entity(entity).try_insert(Rebuild);
+        if let Ok(model) = built.get(model)
+            && shares_otherwise(&model, &assets, table.instances(model.1.asset))
+        {
+            commands.entity(model.0).try_insert(Rebuild);
         }
     }
 }

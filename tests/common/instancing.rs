@@ -1,5 +1,5 @@
 //! A GLB whose one node places a quad many times through `EXT_mesh_gpu_instancing` (shared by
-//! the import tests and the plugin's).
+//! the import, CLI and plugin tests).
 
 /// A 1×1 quad in XZ (two triangles, a normal up), placed by one node at `node_at` through
 /// `EXT_mesh_gpu_instancing` once per element of `translations`; the second copy, if any,
@@ -57,28 +57,5 @@ pub fn instanced_quads(translations: &[[f32; 3]], node_at: [f32; 3], extra: &str
         bin.len() - s_at,
         bin.len(),
     );
-    glb(json.as_bytes(), &bin)
-}
-
-/// A GLB container of `json` and a `BIN` chunk of `bin` (each padded to 4 bytes).
-fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
-    let (mut json, mut bin) = (json.to_vec(), bin.to_vec());
-    json.resize(json.len().next_multiple_of(4), b' ');
-    bin.resize(bin.len().next_multiple_of(4), 0);
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    for word in [
-        b"glTF".as_slice(),
-        &2u32.to_le_bytes(),
-        &(total as u32).to_le_bytes(),
-    ] {
-        out.extend_from_slice(word);
-    }
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
+    super::glb(&json, &bin)
 }

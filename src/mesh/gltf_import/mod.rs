@@ -106,7 +106,7 @@ pub fn load_gltf_slice_with_limits(
         instances
             .iter()
             .filter_map(|i| i.gpu.as_ref())
-            .flat_map(|g| g.accessors().cloned().collect::<Vec<_>>()),
+            .flat_map(|g| g.accessors().cloned()),
         limits,
     )?;
     let (data, skins) = load(&document, bytes.len(), bin, base_dir, limits)?;
