@@ -17,12 +17,14 @@
 use super::asset::MultiresMesh;
 use super::components::LodRegion;
 use super::instance::MultiresInstance;
+use super::skin::binding::SkinBinding;
 use crate::bevy_mesh::to_bevy_mesh;
 use crate::mesh::{IndexedMesh, optimize_vertex_cache};
 use crate::regions::{RegionCaches, RegionMesh};
 use bevy::asset::AssetId;
 use bevy::camera::primitives::Aabb;
 use bevy::mesh::Indices;
+use bevy::mesh::skinning::SkinnedMeshInverseBindposes;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use std::sync::Arc;
@@ -145,17 +147,19 @@ impl Default for SharedLevels {
 pub struct NoSharedLevels;
 
 /// The ladder a model shares with, or `None` for meshes of its own: never with
-/// [`NoSharedLevels`] (`opted_out`) or when `skinned`; else its explicit [`SharedLevels`];
-/// else the default ladder once its asset has more than one instance, unless it has a
-/// [`Geomorph`](super::Geomorph) (region geomorphs move vertices per instance).
+/// [`NoSharedLevels`] (`opted_out`) or when it is skinned and Bevy cannot skin it
+/// (`cpu_only`: see [`skinned_on_gpu`](super::skin::skinned_on_gpu)); else its explicit
+/// [`SharedLevels`]; else the default ladder once its asset has more than one instance,
+/// unless it has a [`Geomorph`](super::Geomorph) (region geomorphs move vertices per
+/// instance).
 pub(super) fn ladder(
     explicit: Option<SharedLevels>,
     opted_out: bool,
     geomorph: bool,
-    skinned: bool,
+    cpu_only: bool,
     instances: u32,
 ) -> Option<SharedLevels> {
-    if opted_out || skinned {
+    if opted_out || cpu_only {
         return None;
     }
     match explicit {
@@ -192,6 +196,57 @@ pub(super) struct SharedAsset {
     dependencies: Vec<Box<[u32]>>,
     /// Per region, the box of all its vertices (any level's triangles lie inside).
     pub(super) boxes: Vec<Aabb>,
+    /// A skinned asset's skin, as Bevy skins its level meshes.
+    pub(super) skin: Option<SharedSkin>,
+}
+
+/// How Bevy skins a shared skinned asset's level meshes: each region's meshes name only the
+/// joints its vertices use (so Bevy extracts a few matrices per region, not the skeleton),
+/// in the order of [`SkinBinding::region_joints`].
+#[derive(Debug)]
+pub(super) struct SharedSkin {
+    pub(super) binding: Arc<SkinBinding>,
+    /// Per region: the inverse bind matrices of its joints.
+    pub(super) inverse_bindposes: Vec<Handle<SkinnedMeshInverseBindposes>>,
+}
+
+impl SharedSkin {
+    fn new(binding: Arc<SkinBinding>, assets: &mut Assets<SkinnedMeshInverseBindposes>) -> Self {
+        let inverse_bindposes = (0..binding.kinds().len())
+            .map(|r| {
+                let matrices: Vec<_> = binding
+                    .region_joints(r)
+                    .iter()
+                    .map(|&j| binding.inverse_bindposes()[j as usize])
+                    .collect();
+                assets.add(SkinnedMeshInverseBindposes::from(matrices))
+            })
+            .collect();
+        Self {
+            binding,
+            inverse_bindposes,
+        }
+    }
+
+    /// The joints and weights of region `r`'s local vertices `used`, as its level mesh
+    /// carries them: joint indices into the region's joints.
+    fn influences(&self, r: usize, used: &[u32]) -> (Vec<[u16; 4]>, Vec<[f32; 4]>) {
+        let local = self.binding.local_influences(r);
+        let joints = self.binding.region_joints(r);
+        used.iter()
+            .map(|&v| {
+                let (j, w) = (local.joints[v as usize], local.weights[v as usize]);
+                let slot = |k: usize| -> u16 {
+                    if w[k] > 0.0 {
+                        joints.binary_search(&j[k]).unwrap_or(0) as u16
+                    } else {
+                        0
+                    }
+                };
+                ([slot(0), slot(1), slot(2), slot(3)], w)
+            })
+            .unzip()
+    }
 }
 
 /// A level mesh's key: the asset, the region, and the levels of the region's dependencies.
@@ -220,10 +275,14 @@ pub(super) struct SharedMeshes {
 
 impl SharedMeshes {
     /// The shared data of asset `id` (made on first use).
+    /// `skin`: a skinned asset's binding, which Bevy skins its level meshes by (with
+    /// `bindposes` to keep their inverse bind matrices).
     pub(super) fn asset(
         &mut self,
         id: AssetId<MultiresMesh>,
         regions: &RegionMesh,
+        skin: Option<&Arc<SkinBinding>>,
+        bindposes: &mut Assets<SkinnedMeshInverseBindposes>,
     ) -> Arc<SharedAsset> {
         if let Some(asset) = self.assets.get(&id) {
             return asset.clone();
@@ -239,6 +298,7 @@ impl SharedMeshes {
                     Aabb::enclosing(positions.iter().copied()).unwrap_or_default()
                 })
                 .collect(),
+            skin: skin.map(|binding| SharedSkin::new(binding.clone(), bindposes)),
         });
         self.next_serial += 1;
         self.assets.insert(id, asset.clone());
@@ -343,7 +403,8 @@ impl SharedUpload<'_, '_, '_> {
                     for &q in &state.asset.dependencies[r] {
                         caches.set_level(regions, q as usize, instance.caches.level(q as usize));
                     }
-                    let mesh = level_mesh(regions, caches, r, &mut self.scratch);
+                    let skin = state.asset.skin.as_ref();
+                    let mesh = level_mesh(regions, caches, r, skin, &mut self.scratch);
                     self.bytes += mesh_bytes(&mesh);
                     let handle = meshes.add(mesh);
                     self.table.levels.insert(key.clone(), handle.id());
@@ -367,11 +428,14 @@ impl SharedUpload<'_, '_, '_> {
 
 /// The Bevy mesh of region `r` at the caches' current levels: its triangles reordered for
 /// the vertex cache ([`optimize_vertex_cache`]; the collapse order scatters them), only the
-/// vertices they use, in the order they are first used, 16-bit indices where they fit.
+/// vertices they use, in the order they are first used, 16-bit indices where they fit. A
+/// skinned asset's (`skin`) carries its vertices in bind space with their joints and
+/// weights, and the bounds Bevy moves with the joints.
 fn level_mesh(
     regions: &RegionMesh,
     caches: &mut RegionCaches,
     r: usize,
+    skin: Option<&SharedSkin>,
     indices: &mut Vec<u32>,
 ) -> Mesh {
     caches.write_indices(regions, r, indices);
@@ -387,9 +451,16 @@ fn level_mesh(
         }
         *i = *slot;
     }
+    let (joints, weights) = match skin {
+        Some(skin) => {
+            let (joints, weights) = skin.influences(r, &used);
+            (Some(joints), Some(weights))
+        }
+        None => (None, None),
+    };
     let vertices = IndexedMesh {
-        joints: None,
-        weights: None,
+        joints,
+        weights,
         ..table.subset(&used)
     };
     let mut mesh = to_bevy_mesh(&vertices, &[]);
@@ -398,6 +469,11 @@ fn level_mesh(
     } else {
         Indices::U32(indices.clone())
     });
+    if skin.is_some()
+        && let Err(error) = mesh.generate_skinned_mesh_bounds()
+    {
+        warn_once!("a skinned level mesh has no joint bounds ({error}): culled by its last box");
+    }
     mesh
 }
 
@@ -496,8 +572,8 @@ mod tests {
         }
         for r in 0..counts.len() {
             let (mut x, mut y) = (Vec::new(), Vec::new());
-            let mx = level_mesh(&regions, &mut a, r, &mut x);
-            let my = level_mesh(&regions, &mut b, r, &mut y);
+            let mx = level_mesh(&regions, &mut a, r, None, &mut x);
+            let my = level_mesh(&regions, &mut b, r, None, &mut y);
             assert_eq!(x, y);
             assert_eq!(mesh_bytes(&mx), mesh_bytes(&my));
             // Only the vertices the level uses.
@@ -525,7 +601,7 @@ mod tests {
         let mut raw = Vec::new();
         caches.write_indices(&regions, 0, &mut raw);
         let mut ordered = Vec::new();
-        let level = level_mesh(&regions, &mut caches, 0, &mut ordered);
+        let level = level_mesh(&regions, &mut caches, 0, None, &mut ordered);
         let before = crate::mesh::vertex_cache_misses(&raw, 16);
         let after = crate::mesh::vertex_cache_misses(&ordered, 16);
         assert!(after < 0.8 * before, "{before} -> {after}");

@@ -10,9 +10,11 @@ use super::components::{Geomorph, LodRegion, MultiresModel, ViewDependentLevel};
 use super::geomorph::RegionGeomorphs;
 use super::instance::{AllocationSlot, MultiresInstance, Rebuild, RegionStaging};
 use super::messages::{MultiresBuildFailed, MultiresModelReady};
-use super::shared::{NoSharedLevels, SharedLevels, SharedMeshes, SharedState, ladder};
+use super::shared::{
+    NoSharedLevels, SharedAsset, SharedLevels, SharedMeshes, SharedState, ladder,
+};
 use super::skin::binding::SkinBinding;
-use super::skin::{MultiresSkin, SkinState, initial_region_mesh};
+use super::skin::{MultiresSkin, SkinPose, SkinState, initial_region_mesh, skinned_on_gpu};
 use super::view_dependent::{ViewDependent, ViewDependentState};
 use crate::bevy_mesh::to_bevy_mesh;
 use crate::mesh::IndexedMesh;
@@ -20,10 +22,12 @@ use crate::regions::{RegionCaches, RegionMesh};
 use crate::skin::SkinRegionKind;
 use bevy::camera::primitives::{Aabb, MeshAabb};
 use bevy::camera::visibility::RenderLayers;
-use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
+use bevy::camera::visibility::{DynamicSkinnedMeshBounds, NoAutoAabb, NoFrustumCulling};
 use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
 use bevy::ecs::query::{QueryData, QueryItem};
 use bevy::mesh::Indices;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::pbr::MAX_JOINTS;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
@@ -34,6 +38,7 @@ type ModelState = (
     AllocationSlot,
     RegionStaging,
     SkinState,
+    SkinPose,
     RegionGeomorphs,
     ViewDependentState,
     SharedState,
@@ -65,6 +70,7 @@ type SharingOf = (
     Has<NoSharedLevels>,
     Has<Geomorph>,
     Option<&'static SharedState>,
+    Option<&'static MultiresSkin>,
 );
 
 /// Gives every new [`MultiresModel`] whose asset is loaded its region children and state,
@@ -73,12 +79,14 @@ type SharingOf = (
 /// over. A skinned asset with a [`MultiresSkin`] puts each rigid region under its joint
 /// entity instead. A model shares level meshes as [`ladder`] says, counting this frame's new
 /// models: the first instance of an asset that gets a second is rebuilt to share.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn spawn_regions(
     mut commands: Commands,
     models: ToBuild,
     built: Query<SharingOf, Without<Rebuild>>,
     assets: Res<Assets<MultiresMesh>>,
     mut meshes: ResMut<Assets<Mesh>>,
+    mut bindposes: ResMut<Assets<SkinnedMeshInverseBindposes>>,
     mut shared_meshes: ResMut<SharedMeshes>,
     mut ready: MessageWriter<MultiresModelReady>,
 ) {
@@ -108,51 +116,25 @@ pub(super) fn spawn_regions(
             }
             _ => None,
         };
-        // Skinned regions start as their bind pose (rigid ones in their bone's space): the
-        // state's buffers and the meshes alike.
-        let initial: Option<Vec<_>> = binding.as_ref().map(|b| {
+        let instances = totals.get(&model.0.id()).copied().unwrap_or(1);
+        let shared = sharing(&item, asset, instances, &mut shared_meshes, &mut bindposes);
+        // Skinned on the CPU (not shared), regions start as their bind pose (rigid ones in
+        // their bone's space): the state's buffers and the meshes alike. Shared ones are
+        // skinned by Bevy from their level meshes.
+        let cpu_skin = binding.as_deref().filter(|_| shared.is_none());
+        let initial: Option<Vec<_>> = cpu_skin.map(|b| {
             (0..regions.regions().len())
                 .map(|r| initial_region_mesh(b, &regions, r))
                 .collect()
         });
-        let skin = binding
-            .as_ref()
-            .zip(initial.as_deref())
-            .map(|(b, meshes)| SkinState::new(b.clone(), meshes));
+        let skin = initial.as_deref().map(SkinState::new);
         let place = Placement {
             model: entity,
-            binding: binding.as_deref(),
+            binding: cpu_skin,
             joints,
         };
-        if item.shared.is_some() && asset.skin().is_some() {
-            warn!(
-                "MultiresModel {entity} has SharedLevels but is skinned: its regions keep their own meshes"
-            );
-        }
-        let instances = totals.get(&model.0.id()).copied().unwrap_or(1);
-        let ladder = ladder(
-            item.shared.copied(),
-            item.opted_out,
-            item.geomorph,
-            asset.skin().is_some(),
-            instances,
-        );
-        let shared = ladder.map(|ladder| {
-            if ladder.effective_ratio() != ladder.ratio {
-                warn!(
-                    "MultiresModel {entity}: SharedLevels ratio {} is not above {}; {} is used",
-                    ladder.ratio,
-                    SharedLevels::MIN_RATIO,
-                    SharedLevels::MIN_RATIO
-                );
-            }
-            SharedState {
-                asset: shared_meshes.asset(model.0.id(), &regions),
-                ladder,
-            }
-        });
         let (handles, region_entities) = match &shared {
-            Some(state) => spawn_shared_region_entities(&mut commands, entity, &state.asset.boxes),
+            Some(state) => spawn_shared_region_entities(&mut commands, entity, &state.asset, joints),
             None => spawn_region_entities(&mut commands, &mut meshes, &regions, &place, initial),
         };
         let targets = regions
@@ -172,7 +154,7 @@ pub(super) fn spawn_regions(
             mesh_ids: handles.iter().map(Handle::id).collect(),
             meshes: handles,
             region_entities,
-            skinned_boxes: skin.as_ref().map(|_| Vec::new()),
+            skinned_boxes: binding.as_ref().map(|_| Vec::new()),
             level: None,
             regions,
         };
@@ -183,6 +165,9 @@ pub(super) fn spawn_regions(
             Some(skin) => model.insert(skin),
             None => model.insert(staging),
         };
+        if let Some(binding) = binding {
+            model.insert(SkinPose::new(binding));
+        }
         if let Some(shared) = shared {
             model.insert(shared);
         }
@@ -191,6 +176,52 @@ pub(super) fn spawn_regions(
             asset: model_asset,
         });
     }
+}
+
+/// How a model being built shares, as [`ladder`] says with its asset's `instances` (once
+/// this frame's are built): its state, or `None` for meshes of its own.
+fn sharing(
+    item: &QueryItem<ModelToBuild>,
+    asset: &MultiresMesh,
+    instances: u32,
+    table: &mut SharedMeshes,
+    bindposes: &mut Assets<SkinnedMeshInverseBindposes>,
+) -> Option<SharedState> {
+    let entity = item.entity;
+    let cpu_only = cpu_only(asset, item.joints);
+    if item.shared.is_some() && cpu_only {
+        warn!(
+            "MultiresModel {entity} has SharedLevels but Bevy cannot skin it (no MultiresSkin, fewer joints than its skin, or a region over {MAX_JOINTS} joints): its regions keep their own meshes"
+        );
+    }
+    let ladder = ladder(
+        item.shared.copied(),
+        item.opted_out,
+        item.geomorph,
+        cpu_only,
+        instances,
+    )?;
+    if ladder.effective_ratio() != ladder.ratio {
+        warn!(
+            "MultiresModel {entity}: SharedLevels ratio {} is not above {}; {} is used",
+            ladder.ratio,
+            SharedLevels::MIN_RATIO,
+            SharedLevels::MIN_RATIO
+        );
+    }
+    let id = item.model.0.id();
+    Some(SharedState {
+        asset: table.asset(id, asset.regions(), asset.skin(), bindposes),
+        ladder,
+    })
+}
+
+/// Whether a model of `asset` with joints `joints` must keep its own meshes: it is skinned
+/// and Bevy cannot skin it ([`skinned_on_gpu`]), so the plugin blends it on the CPU.
+fn cpu_only(asset: &MultiresMesh, joints: Option<&MultiresSkin>) -> bool {
+    asset
+        .skin()
+        .is_some_and(|binding| !skinned_on_gpu(binding, joints))
 }
 
 /// Per asset, the models that will show it once `models` are built: those built, and each
@@ -241,14 +272,14 @@ fn share_first_instances(
 /// Whether a built model shares otherwise than [`ladder`] says it should once its asset
 /// has `instances` built models.
 fn shares_otherwise(
-    (_, instance, explicit, opted_out, geomorph, state): &QueryItem<SharingOf>,
+    (_, instance, explicit, opted_out, geomorph, state, joints): &QueryItem<SharingOf>,
     assets: &Assets<MultiresMesh>,
     instances: u32,
 ) -> bool {
-    let skinned = assets
+    let cpu_only = assets
         .get(instance.asset)
-        .is_some_and(|asset| asset.skin().is_some());
-    let wanted = ladder(explicit.copied(), *opted_out, *geomorph, skinned, instances);
+        .is_some_and(|asset| cpu_only(asset, *joints));
+    let wanted = ladder(explicit.copied(), *opted_out, *geomorph, cpu_only, instances);
     state.map(|s| s.ladder) != wanted
 }
 
@@ -341,13 +372,17 @@ fn spawn_region_entities(
 }
 
 /// Spawns one child per region of a shared model, each with the box of all its vertices and
-/// no mesh yet: its first `Upload` puts it on the level mesh of its levels.
+/// no mesh yet: its first `Upload` puts it on the level mesh of its levels. A skinned
+/// model's children are skinned by Bevy, on the joints of `joints` their region uses, and
+/// culled by bounds Bevy moves with those joints.
 fn spawn_shared_region_entities(
     commands: &mut Commands,
     model: Entity,
-    boxes: &[Aabb],
+    asset: &SharedAsset,
+    joints: Option<&MultiresSkin>,
 ) -> (Vec<Handle<Mesh>>, Vec<Entity>) {
-    let entities = boxes
+    let entities = asset
+        .boxes
         .iter()
         .enumerate()
         .map(|(r, &aabb)| {
@@ -359,10 +394,21 @@ fn spawn_shared_region_entities(
                 aabb,
                 NoAutoAabb,
             );
-            commands.spawn(child).id()
+            let mut child = commands.spawn(child);
+            if let (Some(skin), Some(joints)) = (&asset.skin, joints) {
+                let region_joints = skin.binding.region_joints(r).iter();
+                child.insert((
+                    SkinnedMesh {
+                        inverse_bindposes: skin.inverse_bindposes[r].clone(),
+                        joints: region_joints.map(|&j| joints.joints[j as usize]).collect(),
+                    },
+                    DynamicSkinnedMeshBounds,
+                ));
+            }
+            child.id()
         })
         .collect();
-    (vec![Handle::default(); boxes.len()], entities)
+    (vec![Handle::default(); asset.boxes.len()], entities)
 }
 
 /// The Bevy mesh of a region or a variable-resolution level before its first level: the
@@ -495,7 +541,7 @@ pub(super) fn sync_view_dependent(
             Option<Ref<ViewDependent>>,
             Option<&mut ViewDependentState>,
             Option<&mut RegionStaging>,
-            Has<SkinState>,
+            Has<SkinPose>,
         ),
         // The others have no refinement to start or stop.
         Or<(With<ViewDependent>, With<ViewDependentState>)>,

@@ -17,9 +17,10 @@ use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodViewport, Geomorph, MultiresInstance, MultiresMesh,
-    MultiresScene, MultiresSceneModels, MultiresSourceMesh, PolygonBudget, VariableLevel,
-    ViewDependent,
+    MultiresScene, MultiresSceneModels, MultiresSourceMesh, PolygonBudget, SharedLevels,
+    VariableLevel, ViewDependent,
 };
+use std::collections::HashMap;
 use std::time::Duration;
 
 const TESTDATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/testdata");
@@ -244,6 +245,27 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
             let Some(indices) = mesh.indices() else {
                 continue;
             };
+            if let Some(skinned) = skinned_by_bevy(world, entity, mesh) {
+                // A shared level mesh: its vertices are the region's, by bind position.
+                let table = &instance.regions().regions()[r].progressive_mesh().vertices();
+                let mut local: HashMap<[u32; 3], Vec<usize>> = HashMap::new();
+                for (v, p) in table.positions.iter().enumerate() {
+                    local.entry(p.to_array().map(f32::to_bits)).or_default().push(v);
+                }
+                for i in indices.iter() {
+                    let at = skinned[i];
+                    let v = local[&drawn[i].map(f32::to_bits)]
+                        .iter()
+                        .map(|&l| map[l] as usize)
+                        .min_by(|&a, &b| {
+                            let (a, b) = (reference(a).distance(at), reference(b).distance(at));
+                            a.total_cmp(&b)
+                        })
+                        .expect("a vertex of the region");
+                    out.push((v as u32, reference(v), at));
+                }
+                continue;
+            }
             for i in indices.iter() {
                 let v = map[i] as usize;
                 out.push((
@@ -257,6 +279,41 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
     (hi.y - lo.y, triangles, out)
 }
 
+/// Where Bevy's skinning shader puts each vertex of a region `entity` draws from `mesh`, when
+/// Bevy skins it (a shared level mesh): `Σ wₖ G_jₖ IB_jₖ p` over the joints its
+/// `SkinnedMesh` lists.
+fn skinned_by_bevy(world: &World, entity: Entity, mesh: &Mesh) -> Option<Vec<Vec3>> {
+    let skin = world.get::<SkinnedMesh>(entity)?;
+    let bindposes = world.resource::<Assets<SkinnedMeshInverseBindposes>>();
+    let ib = bindposes.get(&skin.inverse_bindposes).expect("bindposes");
+    let matrices: Vec<Mat4> = skin
+        .joints
+        .iter()
+        .zip(ib.iter())
+        .map(|(&j, ib)| world.get::<GlobalTransform>(j).expect("joint").to_matrix() * *ib)
+        .collect();
+    let (
+        Some(VertexAttributeValues::Uint16x4(joints)),
+        Some(VertexAttributeValues::Float32x4(weights)),
+    ) = (
+        mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX),
+        mesh.attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT),
+    )
+    else {
+        panic!("a level mesh Bevy skins carries joints and weights");
+    };
+    let skinned = positions(mesh).iter().zip(joints.iter().zip(weights));
+    Some(
+        skinned
+            .map(|(&p, (j, w))| {
+                (0..4)
+                    .map(|k| matrices[j[k] as usize].transform_point3(Vec3::from(p)) * w[k])
+                    .sum()
+            })
+            .collect(),
+    )
+}
+
 /// The largest distance between a drawn vertex and where reference skinning puts it.
 fn worst(pairs: &[(u32, Vec3, Vec3)]) -> f32 {
     pairs
@@ -267,7 +324,14 @@ fn worst(pairs: &[(u32, Vec3, Vec3)]) -> f32 {
 
 /// Plays `clip_name` of `path` and checks full detail at 10 times, then reduced detail at
 /// 10 other times (when `reduce`): every drawn vertex where reference skinning puts it.
-fn check_against_reference(root_dir: &str, path: &'static str, clip_name: &str, reduce: bool) {
+/// `by_bevy`: the models share level meshes, which Bevy skins.
+fn check_against_reference(
+    root_dir: &str,
+    path: &'static str,
+    clip_name: &str,
+    reduce: bool,
+    by_bevy: bool,
+) {
     let mut app = app(1_000_000, root_dir);
     let (root, node, player, length) = spawn_character(&mut app, path, clip_name);
     let models = app
@@ -276,6 +340,25 @@ fn check_against_reference(root_dir: &str, path: &'static str, clip_name: &str, 
         .expect("models")
         .clone();
     assert!(!models.skinned.is_empty(), "{path} has skinned meshes");
+    if by_bevy {
+        for &model in &models.skinned {
+            app.world_mut()
+                .entity_mut(model)
+                .insert(SharedLevels::default());
+        }
+        for _ in 0..3 {
+            app.update();
+        }
+        for &model in &models.skinned {
+            let instance = app.world().get::<MultiresInstance>(model).expect("built");
+            for &region in instance.region_entities() {
+                assert!(
+                    app.world().get::<SkinnedMesh>(region).is_some(),
+                    "a shared skinned region is skinned by Bevy"
+                );
+            }
+        }
+    }
     assert!(length > 0.5, "{clip_name} lasts {length} s");
     let mut full = 0;
     for i in 0..10 {
@@ -322,14 +405,22 @@ fn check_against_reference(root_dir: &str, path: &'static str, clip_name: &str, 
 /// reduced detail is checked on the mannequin.)
 #[test]
 fn robot_dance_matches_reference_skinning() {
-    check_against_reference(TESTDATA, ROBOT, "Dance", false);
+    check_against_reference(TESTDATA, ROBOT, "Dance", false, false);
 }
 
 /// The mannequin at full and reduced detail: drawn vertices sit where full-detail skinning
 /// puts them, and the total stays within the budget.
 #[test]
 fn mannequin_matches_reference_skinning_at_full_and_reduced_detail() {
-    check_against_reference(ASSETS, MANNEQUIN, "Aerobics", true);
+    check_against_reference(ASSETS, MANNEQUIN, "Aerobics", true, false);
+}
+
+/// The same on the path crowds take: the mannequin's instances share level meshes, which
+/// Bevy skins on the GPU from their joints and weights; every vertex it draws, on both
+/// sides of every region border, lands where reference skinning puts it.
+#[test]
+fn mannequin_skinned_by_bevy_matches_reference_skinning() {
+    check_against_reference(ASSETS, MANNEQUIN, "Aerobics", true, true);
 }
 
 /// Issue 6's invariant while animated: at every level the budget gives (from the coarsest
@@ -384,7 +475,7 @@ fn level_range(app: &mut App) -> (usize, usize) {
 
 /// One place per source vertex, and closed: each directed edge once, and its reverse once.
 fn assert_watertight(pairs: &[(u32, Vec3, Vec3)], height: f32, at: &str) {
-    let mut place: std::collections::HashMap<u32, Vec3> = Default::default();
+    let mut place: HashMap<u32, Vec3> = Default::default();
     for &(v, _, drawn) in pairs {
         let first = *place.entry(v).or_insert(drawn);
         assert!(
@@ -392,7 +483,7 @@ fn assert_watertight(pairs: &[(u32, Vec3, Vec3)], height: f32, at: &str) {
             "{at}: vertex {v} drawn at {first} and {drawn}"
         );
     }
-    let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    let mut edges: HashMap<(u32, u32), u32> = Default::default();
     for tri in pairs.chunks_exact(3) {
         let (a, b, c) = (tri[0].0, tri[1].0, tri[2].0);
         for e in [(a, b), (b, c), (c, a)] {

@@ -140,6 +140,17 @@ impl SkinBinding {
         &self.local[region]
     }
 
+    /// The joints region `region`'s local vertices depend on (with a weight above zero),
+    /// ascending, without repeats.
+    ///
+    /// # Panics
+    /// When `region` is out of range.
+    #[inline]
+    #[must_use]
+    pub fn region_joints(&self, region: usize) -> &[u16] {
+        &self.region_joints[region]
+    }
+
     /// Rigid regions: how many, and deformable regions: how many.
     #[must_use]
     pub fn rigid_deformable_counts(&self) -> (usize, usize) {

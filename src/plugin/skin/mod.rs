@@ -32,6 +32,7 @@ use crate::skin::{Influences, SkinRegionKind, blend, blend_with_tangents};
 use bevy::diagnostic::Diagnostics;
 use bevy::ecs::system::NonSendMarker;
 use bevy::mesh::VertexAttributeValues;
+use bevy::pbr::MAX_JOINTS;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use binding::SkinBinding;
@@ -46,6 +47,14 @@ use std::sync::Arc;
 pub struct MultiresSkin {
     /// The joint entities.
     pub joints: Vec<Entity>,
+}
+
+/// Whether Bevy can skin a model of skin `binding` with joints `joints` on the GPU: it lists
+/// every joint of the skin, and each region uses at most Bevy's [`MAX_JOINTS`]. Otherwise
+/// the model is skinned on the CPU, in `Deform`.
+pub(super) fn skinned_on_gpu(binding: &SkinBinding, joints: Option<&MultiresSkin>) -> bool {
+    joints.is_some_and(|j| j.joints.len() >= binding.joint_count())
+        && (0..binding.kinds.len()).all(|r| binding.region_joints[r].len() <= MAX_JOINTS)
 }
 
 /// Per-region deformation state of one instance.
@@ -113,10 +122,12 @@ impl RegionSkin {
     }
 }
 
-/// The deformation state of a skinned instance (skinned models only: they stage their index
-/// buffers here instead of in a `RegionStaging`).
+/// The pose of a skinned instance, read from its joints at the start of `Allocate`
+/// ([`update_skins`]): what places its regions' boxes for the allocation, and (skinned on the
+/// CPU) the matrices `Deform` blends with. Every skinned model with a [`MultiresSkin`] has
+/// one, whoever skins its vertices.
 #[derive(Component, Debug)]
-pub(crate) struct SkinState {
+pub(crate) struct SkinPose {
     binding: Arc<SkinBinding>,
     /// `S_j = G_R⁻¹ G_j IB_j`: skinning matrices in the model root's space.
     matrices: Vec<Mat4>,
@@ -126,8 +137,28 @@ pub(crate) struct SkinState {
     joint_globals: Vec<Affine3A>,
     /// `G_R`.
     root_global: Affine3A,
-    regions: Vec<RegionSkin>,
     first_frame: bool,
+}
+
+impl SkinPose {
+    pub(crate) fn new(binding: Arc<SkinBinding>) -> Self {
+        let joints = binding.joint_count();
+        Self {
+            binding,
+            matrices: vec![Mat4::IDENTITY; joints],
+            moved: vec![true; joints],
+            joint_globals: vec![Affine3A::IDENTITY; joints],
+            root_global: Affine3A::IDENTITY,
+            first_frame: true,
+        }
+    }
+}
+
+/// The deformation state of an instance skinned on the CPU (the paper's blend: it stages its
+/// index buffers here instead of in a `RegionStaging`, and blends in `Deform`).
+#[derive(Component, Debug)]
+pub(crate) struct SkinState {
+    regions: Vec<RegionSkin>,
     /// Under geomorphs: the further attributes they interpolate (see
     /// `RegionSkin::morph_attributes`).
     morph_targets: Vec<MorphTarget>,
@@ -135,8 +166,7 @@ pub(crate) struct SkinState {
 
 impl SkinState {
     /// `initial`: each region's mesh from [`initial_region_mesh`], which both buffers start as.
-    pub(crate) fn new(binding: Arc<SkinBinding>, initial: &[IndexedMesh]) -> Self {
-        let joints = binding.joint_count();
+    pub(crate) fn new(initial: &[IndexedMesh]) -> Self {
         let region_state = initial
             .iter()
             .map(|mesh| {
@@ -157,13 +187,7 @@ impl SkinState {
             })
             .collect();
         Self {
-            binding,
-            matrices: vec![Mat4::IDENTITY; joints],
-            moved: vec![true; joints],
-            joint_globals: vec![Affine3A::IDENTITY; joints],
-            root_global: Affine3A::IDENTITY,
             regions: region_state,
-            first_frame: true,
             morph_targets: Vec::new(),
         }
     }
@@ -173,6 +197,7 @@ impl SkinState {
     /// its own vertices too, until both its buffers hold them at rest).
     fn refresh_indices(
         &mut self,
+        binding: &SkinBinding,
         caches: &mut RegionCaches,
         regions: &RegionMesh,
         morphs: Option<&Geomorphs>,
@@ -186,7 +211,7 @@ impl SkinState {
                 state.morph_passes.saturating_sub(1)
             };
             let with_own = state.morph_passes > 0;
-            let rigid = matches!(self.binding.kinds[r], SkinRegionKind::Rigid { .. });
+            let rigid = matches!(binding.kinds[r], SkinRegionKind::Rigid { .. });
             let own = regions.regions()[r].own_vertices;
             if caches.is_dirty(r) {
                 caches.write_indices(regions, r, &mut state.indices);
@@ -203,7 +228,9 @@ impl SkinState {
             }
         }
     }
+}
 
+impl SkinPose {
     /// Reads the joints' and the root's global transforms: skinning matrices, which joints
     /// moved, and every region's world box (its box `obbs` placed by its bones, into
     /// `world`). Returns whether a joint had no `GlobalTransform`.
@@ -466,6 +493,7 @@ type DeformInput<'a> = (
     &'a mut RegionCaches,
     &'a RegionMesh,
     &'a mut SkinState,
+    &'a SkinPose,
     Option<(&'a Geomorphs, f32)>,
 );
 
@@ -475,14 +503,14 @@ type DeformInput<'a> = (
 /// calling thread. Returns the vertices blended.
 fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
     par_chunks(instances, |chunk| {
-        for (caches, regions, skin, morph) in chunk {
-            skin.refresh_indices(caches, regions, morph.map(|(m, _)| m));
+        for (caches, regions, skin, pose, morph) in chunk {
+            skin.refresh_indices(&pose.binding, caches, regions, morph.map(|(m, _)| m));
         }
     });
 
     let mut jobs: Vec<Job<'_>> = Vec::new();
-    for (_, regions, skin, morph) in instances.iter_mut() {
-        let skin = &mut **skin;
+    for (_, regions, skin, pose, morph) in instances.iter_mut() {
+        let (skin, pose) = (&mut **skin, &**pose);
         let morph = *morph;
         if let Some((morphs, _)) = morph
             && skin.morph_targets.len() != morphs.attribute_groups().len()
@@ -491,17 +519,17 @@ fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
         }
         for (r, state) in skin.regions.iter_mut().enumerate() {
             let region = &regions.regions()[r];
-            let moved = skin.binding.region_joints[r]
+            let moved = pose.binding.region_joints[r]
                 .iter()
-                .any(|&j| skin.moved.get(j as usize).copied().unwrap_or(false));
+                .any(|&j| pose.moved.get(j as usize).copied().unwrap_or(false));
             let morphing = state.morph_passes > 0;
             if !(moved || state.indices_changed || morphing) || state.referenced.is_empty() {
                 state.written.clear();
                 continue;
             }
-            let to_local = match skin.binding.kinds[r] {
+            let to_local = match pose.binding.kinds[r] {
                 SkinRegionKind::Rigid { bone } => {
-                    let joint = skin
+                    let joint = pose
                         .joint_globals
                         .get(bone as usize)
                         .copied()
@@ -510,21 +538,21 @@ fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
                     // local vertices are: keep them finite.
                     let inverse = joint.inverse();
                     Some(if inverse.is_finite() {
-                        inverse * skin.root_global
+                        inverse * pose.root_global
                     } else {
-                        skin.root_global
+                        pose.root_global
                     })
                 }
                 SkinRegionKind::Deformable { .. } => None,
             };
             jobs.push(Job {
                 region: state,
-                influences: &skin.binding.local[r],
+                influences: &pose.binding.local[r],
                 source: region.progressive_mesh().vertices(),
                 morph: morph
                     .filter(|_| morphing)
                     .map(|(m, now)| (m, now, region.global_vertices())),
-                matrices: &skin.matrices,
+                matrices: &pose.matrices,
                 to_local,
             });
         }
@@ -543,7 +571,7 @@ fn blend_instances(instances: &mut [DeformInput<'_>]) -> usize {
 pub(crate) fn update_skins(
     mut models: Query<(
         &mut MultiresInstance,
-        &mut SkinState,
+        &mut SkinPose,
         &GlobalTransform,
         &MultiresSkin,
     )>,
@@ -575,6 +603,7 @@ pub(crate) fn deform(
     mut models: Query<(
         &mut MultiresInstance,
         &mut SkinState,
+        &SkinPose,
         Option<&RegionGeomorphs>,
     )>,
     mut stats: ResMut<AslodStats>,
@@ -584,13 +613,14 @@ pub(crate) fn deform(
     let start = Instant::now();
     let mut skinned: Vec<_> = models.iter_mut().collect();
     let mut work = Vec::with_capacity(skinned.len());
-    for (instance, state, morphs) in &mut skinned {
+    for (instance, state, pose, morphs) in &mut skinned {
         let instance = &mut **instance;
         let morphs = morphs.map(|m| (&m.morphs, m.now));
         work.push((
             &mut instance.caches,
             &*instance.regions,
             &mut **state,
+            &**pose,
             morphs,
         ));
     }
