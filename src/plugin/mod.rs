@@ -207,6 +207,14 @@ impl AslodPlugin {
 impl Plugin for AslodPlugin {
     fn build(&self, app: &mut App) {
         register_types(app);
+        // Shared skinned models keep their inverse bind matrices there (Bevy's `MeshPlugin`
+        // registers it in a full app; a headless one may not have it).
+        if !app
+            .world()
+            .contains_resource::<Assets<bevy::mesh::skinning::SkinnedMeshInverseBindposes>>()
+        {
+            app.init_asset::<bevy::mesh::skinning::SkinnedMeshInverseBindposes>();
+        }
         app.init_asset::<MultiresMesh>()
             .register_asset_loader(MrmLoader {
                 limits: self.load_limits,
