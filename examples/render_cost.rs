@@ -25,7 +25,8 @@
 //! swapped by `VisibilityRange` at distances √2 apart; (c) `SharedLevels` (the crowd:
 //! `MultiresScene`) under a budget equal to the median triangles (b) drew in view, and again
 //! under the budget, found by secant steps, at which it draws as many in view (the spheres
-//! then once more with one region each, under that budget). Prints per way (medians over
+//! then once more with one region each, under that budget; the crowd once more skinned on
+//! the CPU, `NoSharedLevels`, under that budget). Prints per way (medians over
 //! the path): our systems, Bevy's visibility checks (frustum culling and `VisibilityRange`),
 //! the render world's extraction, preparation and instance rebuild, the bytes of `Mesh`
 //! assets (vertex and index data, what the mesh allocator holds), the triangles and mesh
@@ -72,8 +73,8 @@ use bevy_aslod::bevy_mesh::to_bevy_mesh;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodSystems, LodRegion, MultiresInstance, MultiresMesh,
-    MultiresModel, MultiresScene, NoSharedLevels, PartitionSpec, PolygonBudget, RegionUpload,
-    RegionUploadStats, SharedLevels,
+    MultiresModel, MultiresScene, MultiresSceneModels, NoSharedLevels, PartitionSpec,
+    PolygonBudget, RegionUpload, RegionUploadStats, SharedLevels,
 };
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches};
 use std::collections::HashMap;
@@ -1291,14 +1292,26 @@ fn spawn_crowd(app: &mut App, way: &str, n: usize) -> Result<(), String> {
             let at = Transform::from_translation(instance_position(i, n) - Vec3::Y)
                 .with_rotation(Quat::from_rotation_y(i as f32 * 2.4));
             let mut root = app.world_mut().spawn((WorldAssetRoot(scene.clone()), at));
-            if way == "c" {
+            if way.starts_with('c') {
                 root.insert(MultiresScene::default());
             }
             root.id()
         })
         .collect();
-    if way == "c" {
-        return clip::start_clip(app, &gltf, &roots, None, 0.7);
+    if way.starts_with('c') {
+        clip::start_clip(app, &gltf, &roots, None, 0.7)?;
+        if way == "c-cpu" {
+            // The paper's CPU blend: every dancer on meshes of its own.
+            let models: Vec<Entity> = roots
+                .iter()
+                .filter_map(|&r| app.world().get::<MultiresSceneModels>(r))
+                .flat_map(|m| m.skinned.clone())
+                .collect();
+            for model in models {
+                app.world_mut().entity_mut(model).insert(NoSharedLevels);
+            }
+        }
+        return Ok(());
     }
     // Plain scenes: wait for every instance's player, then start the clip on all of them.
     let start = Instant::now();
@@ -1389,6 +1402,16 @@ fn run_instances(counts: &[usize], crowd: Option<usize>, frames: usize) -> Resul
             c2,
             c2_views,
         ));
+        if field == Field::Crowd {
+            // The paper's CPU blend (each dancer its own meshes) under the same budget.
+            let (cc, cc_views) = run_way("c-cpu", field, n, frames, Some(matched.max(1)))?;
+            rows.push((
+                format!("(c){shared}, skinned on the CPU (NoSharedLevels), same budget"),
+                Some(matched),
+                cc,
+                cc_views,
+            ));
+        }
         if field == Field::Spheres {
             // One region per instance (one draw each, as in (b)) under the same budget.
             let (c1, c1_views) = run_way("c1", field, n, frames, Some(matched.max(1)))?;

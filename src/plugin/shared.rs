@@ -1,7 +1,9 @@
 //! Shared levels: the instances of one asset that show a region at the same levels draw one
 //! Bevy mesh, made once and dropped when no instance shows it ([`SharedLevels`]). Every
-//! unskinned model whose asset has more than one instance shares (see [`ladder`]), unless it
-//! has a [`Geomorph`](super::Geomorph) or [`NoSharedLevels`].
+//! model whose asset has more than one instance shares (see [`ladder`]), unless it has a
+//! [`Geomorph`](super::Geomorph) or [`NoSharedLevels`]. A skinned asset's level meshes hold
+//! its vertices in bind space with their joints and weights, and Bevy skins them on the GPU
+//! for each instance's joints ([`SharedSkin`]).
 //!
 //! A region's index buffer is a function of its own level and of the levels of the regions
 //! whose steps move its border corners (its *dependencies*), whatever path the caches took
@@ -37,18 +39,23 @@ use std::sync::Arc;
 /// asset while every step is in use (3× at the default 1.5, as a chain of discrete levels
 /// each half the one before costs 2×).
 ///
-/// **Sharing is the default.** An unskinned model without a
-/// [`Geomorph`](super::Geomorph) shares with the default ladder as soon as its asset has a
-/// second instance ([`MultiresScene`](super::MultiresScene) models included); it keeps
-/// sharing until it is rebuilt. Insert this component to choose the ratio, or to share a
+/// **Sharing is the default.** A model without a [`Geomorph`](super::Geomorph) shares with
+/// the default ladder as soon as its asset has a second instance
+/// ([`MultiresScene`](super::MultiresScene) models included); it keeps sharing until it is
+/// rebuilt. Insert this component to choose the ratio, or to share a
 /// model with a `Geomorph` too (which then changes its regions' levels at once;
 /// view-dependent levels still morph), and [`NoSharedLevels`] to keep a model on meshes of
 /// its own.
 ///
 /// A shared model draws up to `1 - 1/ratio` fewer triangles than it was allocated (the
-/// budget still holds). Skinned models move their own vertices and ignore it (with a
-/// warning). Adding, changing or removing the component rebuilds the model when that
-/// changes how it shares.
+/// budget still holds). A shared skinned model (with its [`MultiresSkin`](super::MultiresSkin))
+/// is skinned by Bevy on the GPU, as a plain skinned mesh is: its regions are Bevy skinned
+/// meshes on the joints they use, culled by bounds that follow those joints. One that is
+/// not shared is skinned on the CPU by the paper's blend (section 5.4), which is also what
+/// geomorphs on skinned regions need. A skinned model Bevy cannot skin (no `MultiresSkin`,
+/// one listing fewer joints than its skin, or a region over 256 joints) keeps its own
+/// meshes, with a warning when it has this component. Adding, changing or removing the
+/// component rebuilds the model when that changes how it shares.
 ///
 /// ```
 /// use bevy::prelude::*;

@@ -10,9 +10,7 @@ use super::components::{Geomorph, LodRegion, MultiresModel, ViewDependentLevel};
 use super::geomorph::RegionGeomorphs;
 use super::instance::{AllocationSlot, MultiresInstance, Rebuild, RegionStaging};
 use super::messages::{MultiresBuildFailed, MultiresModelReady};
-use super::shared::{
-    NoSharedLevels, SharedAsset, SharedLevels, SharedMeshes, SharedState, ladder,
-};
+use super::shared::{NoSharedLevels, SharedAsset, SharedLevels, SharedMeshes, SharedState, ladder};
 use super::skin::binding::SkinBinding;
 use super::skin::{MultiresSkin, SkinPose, SkinState, initial_region_mesh, skinned_on_gpu};
 use super::view_dependent::{ViewDependent, ViewDependentState};
@@ -134,7 +132,9 @@ pub(super) fn spawn_regions(
             joints,
         };
         let (handles, region_entities) = match &shared {
-            Some(state) => spawn_shared_region_entities(&mut commands, entity, &state.asset, joints),
+            Some(state) => {
+                spawn_shared_region_entities(&mut commands, entity, &state.asset, joints)
+            }
             None => spawn_region_entities(&mut commands, &mut meshes, &regions, &place, initial),
         };
         let targets = regions
@@ -279,7 +279,13 @@ fn shares_otherwise(
     let cpu_only = assets
         .get(instance.asset)
         .is_some_and(|asset| cpu_only(asset, *joints));
-    let wanted = ladder(explicit.copied(), *opted_out, *geomorph, cpu_only, instances);
+    let wanted = ladder(
+        explicit.copied(),
+        *opted_out,
+        *geomorph,
+        cpu_only,
+        instances,
+    );
     state.map(|s| s.ladder) != wanted
 }
 

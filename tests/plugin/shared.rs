@@ -3,10 +3,11 @@
 
 use super::models::app;
 use bevy::mesh::Indices;
+use bevy::mesh::skinning::SkinnedMesh;
 use bevy::prelude::*;
 use bevy_aslod::plugin::{
-    AslodStats, Geomorph, MultiresInstance, MultiresMesh, MultiresModel, NoSharedLevels,
-    PolygonBudget, SharedLevels,
+    AslodStats, Geomorph, MultiresInstance, MultiresMesh, MultiresModel, MultiresSkin,
+    NoSharedLevels, PolygonBudget, SharedLevels,
 };
 use bevy_aslod::regions::{GridPlane, Partition};
 
@@ -35,14 +36,58 @@ fn mesh_bytes(app: &App) -> usize {
         .sum()
 }
 
+/// The patch skinned to two joints: its left side to joint 0, its right side to joint 1, and
+/// a band between them blending (two rigid regions and a deformable one).
+fn skinned_asset() -> MultiresMesh {
+    let mut mesh = scene::patch(41);
+    let (joints, weights) = mesh
+        .positions
+        .iter()
+        .map(|p| match p.x {
+            x if x < -1.0 => ([0, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
+            x if x > 1.0 => ([1, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]),
+            x => ([0, 1, 0, 0], [0.5 - x * 0.5, 0.5 + x * 0.5, 0.0, 0.0]),
+        })
+        .unzip();
+    mesh.joints = Some(joints);
+    mesh.weights = Some(weights);
+    MultiresMesh::from_skinned(&mesh, &[Mat4::IDENTITY; 2], 0.01).expect("a skinned patch")
+}
+
+/// [`scene`] of [`skinned_asset`]: each model with its two joints (children of the model,
+/// the second raised and turned).
+fn skinned_scene(n: usize, shared: bool, budget: u32) -> (App, Vec<Entity>, Entity) {
+    let (mut app, models, camera) = scene_of(skinned_asset(), n, shared, budget);
+    for &model in &models {
+        let world = app.world_mut();
+        let lower = world.spawn((Transform::default(), ChildOf(model))).id();
+        let turned = Transform::from_xyz(0.0, 1.0, 0.0).with_rotation(Quat::from_rotation_z(0.3));
+        let upper = world.spawn((turned, ChildOf(model))).id();
+        world.entity_mut(model).insert(MultiresSkin {
+            joints: vec![lower, upper],
+        });
+    }
+    (app, models, camera)
+}
+
 /// `n` instances on a square grid 20 units apart, shared or not, and a camera above one
 /// corner looking across them, so that they stand at every distance.
 fn scene(n: usize, shared: bool, budget: u32) -> (App, Vec<Entity>, Entity) {
+    scene_of(asset(), n, shared, budget)
+}
+
+/// [`scene`] of `asset`.
+fn scene_of(
+    asset: MultiresMesh,
+    n: usize,
+    shared: bool,
+    budget: u32,
+) -> (App, Vec<Entity>, Entity) {
     let mut app = app(budget);
     let handle = app
         .world_mut()
         .resource_mut::<Assets<MultiresMesh>>()
-        .add(asset());
+        .add(asset);
     let side = scene::side(n);
     let models = (0..n)
         .map(|i| {
@@ -145,6 +190,52 @@ fn shared_instances_hold_mesh_data_bounded_independently_of_their_number() {
     assert!(
         own > 20 * bytes[1],
         "own meshes {own} B, shared {} B",
+        bytes[1]
+    );
+}
+
+/// The crowd's case: skinned instances that share level meshes, which Bevy skins on the GPU
+/// from their joints, hold mesh data that does not grow with their number; skinned on the
+/// CPU, each holds its own.
+#[test]
+fn shared_skinned_instances_hold_mesh_data_bounded_independently_of_their_number() {
+    let mut bytes = Vec::new();
+    for n in [10, 500] {
+        let (mut app, models, camera) = skinned_scene(n, true, 150 * n as u32);
+        walk(&mut app, &models, camera, 12);
+        settle(&mut app);
+        bytes.push(mesh_bytes(&app));
+        let world = app.world();
+        assert_eq!(
+            world.resource::<AslodStats>().shared_meshes,
+            world.resource::<Assets<Mesh>>().len(),
+            "every mesh is a shared level mesh"
+        );
+        for &model in &models {
+            let instance = world.get::<MultiresInstance>(model).unwrap();
+            assert!(instance.is_skinned());
+            for &region in instance.region_entities() {
+                let skin = world.get::<SkinnedMesh>(region).expect("skinned by Bevy");
+                assert!(!skin.joints.is_empty() && skin.joints.len() <= 2);
+            }
+        }
+    }
+    // Every vertex: position and normal, four joints (16-bit) and four weights.
+    let mesh = scene::patch(41);
+    let asset_bytes = mesh.positions.len() * 48 + mesh.indices.len() * 2;
+    let bound = asset_bytes * 12;
+    assert!(
+        bytes[1].abs_diff(bytes[0]) < bound,
+        "10 instances hold {} B, 500 hold {} B: more than {bound} B apart",
+        bytes[0],
+        bytes[1]
+    );
+    let (mut app, models, camera) = skinned_scene(500, false, 75_000);
+    walk(&mut app, &models, camera, 2);
+    let own = mesh_bytes(&app);
+    assert!(
+        own > 20 * bytes[1],
+        "skinned on the CPU {own} B, shared {} B",
         bytes[1]
     );
 }

@@ -247,10 +247,15 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
             };
             if let Some(skinned) = skinned_by_bevy(world, entity, mesh) {
                 // A shared level mesh: its vertices are the region's, by bind position.
-                let table = &instance.regions().regions()[r].progressive_mesh().vertices();
+                let table = &instance.regions().regions()[r]
+                    .progressive_mesh()
+                    .vertices();
                 let mut local: HashMap<[u32; 3], Vec<usize>> = HashMap::new();
                 for (v, p) in table.positions.iter().enumerate() {
-                    local.entry(p.to_array().map(f32::to_bits)).or_default().push(v);
+                    local
+                        .entry(p.to_array().map(f32::to_bits))
+                        .or_default()
+                        .push(v);
                 }
                 for i in indices.iter() {
                     let at = skinned[i];

@@ -1,7 +1,15 @@
 //! Skinned multiresolution models (ASLOD section 5): the binding stored in the asset
-//! ([`binding`]), the per-instance deformation state ([`SkinState`]), the joints read at the
-//! start of `Allocate` ([`update_skins`]), the `Deform` step ([`deform`]) and what `Upload`
-//! writes of it.
+//! ([`binding`]), the pose read from the joints at the start of `Allocate` ([`SkinPose`],
+//! [`update_skins`]), and for models skinned on the CPU the per-instance deformation state
+//! ([`SkinState`]), the `Deform` step ([`deform`]) and what `Upload` writes of it.
+//!
+//! Two paths draw a skinned model. A model that shares level meshes
+//! ([`SharedLevels`](super::SharedLevels), the default once an asset has a second instance)
+//! is skinned by Bevy on the GPU: its level meshes carry each vertex in bind space with the
+//! joints and weights below, and its region entities are Bevy `SkinnedMesh`es, so the
+//! plugin reads only the pose, for the allocation's boxes. Any other is skinned here, on the
+//! CPU, as the paper does; that path is also the reference the GPU path is tested against.
+//! Both place every vertex alike, so both sides of a border agree on either path.
 //!
 //! Spaces: `G_j` is joint `j`'s `GlobalTransform`, `IB_j` its inverse bind matrix and `G_R`
 //! the model root's `GlobalTransform`. Bevy's own skinning puts a vertex at
