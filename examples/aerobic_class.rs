@@ -24,6 +24,8 @@
 //!   interleaved (LOD, no LOD, LOD, ...) so a slow phase of the machine hits both series.
 //!   `frames.csv` keeps every run; the chart and the summary use each frame's median over
 //!   the runs.
+//! - `--cpu-skinning`: the dancers skinned on the CPU by the paper's blend, each with meshes
+//!   of its own, instead of sharing level meshes that Bevy skins on the GPU (the default).
 //! - `--sizes WxH,WxH,...`: one report per size, each in its own folder `DIR/WxH` (the
 //!   example runs itself once per size), and `DIR/summary.json` holding every size's summary.
 //!
@@ -42,7 +44,7 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::budget::Obb;
 use bevy_aslod::plugin::{
     AslodOverlay, AslodPlugin, AslodStats, CountInBudget, FullDetail, MultiresInstance,
-    MultiresModelReady, MultiresScene, MultiresSceneModels, PolygonBudget,
+    MultiresModelReady, MultiresScene, MultiresSceneModels, NoSharedLevels, PolygonBudget,
 };
 use clap::Parser;
 use common::stats::{CpuTimes, per_frame_medians, series_stats};
@@ -107,6 +109,9 @@ fn main() {
         .insert_resource(Class::new(&args, &asset_root, file))
         .add_systems(Startup, setup)
         .add_systems(Update, (bind_clip, bind_players, place_dancers).chain());
+    if args.cpu_skinning {
+        app.add_systems(Update, skin_on_cpu.before(place_dancers));
+    }
     if args.headless {
         let dir = args
             .report
@@ -164,6 +169,10 @@ struct Args {
     /// One report per size, each by a run of its own, into DIR/WxH.
     #[arg(long, value_name = "WxH,...", value_delimiter = ',', value_parser = common::parse_size, requires = "headless")]
     sizes: Vec<(u32, u32)>,
+    /// Skin the dancers on the CPU (the paper's blend, each dancer its own meshes,
+    /// `NoSharedLevels`) instead of sharing level meshes that Bevy skins on the GPU.
+    #[arg(long)]
+    cpu_skinning: bool,
 }
 
 fn default_model() -> PathBuf {
@@ -549,6 +558,19 @@ fn bind_players(
                 dancer: dancer.index,
             },
         ));
+    }
+}
+
+/// `--cpu-skinning`: each dancer's skinned models, once converted, keep meshes of their own,
+/// which the plugin blends on the CPU.
+fn skin_on_cpu(
+    mut commands: Commands,
+    converted: Query<&MultiresSceneModels, (With<Dancer>, Added<MultiresSceneModels>)>,
+) {
+    for models in &converted {
+        for &model in &models.skinned {
+            commands.entity(model).insert(NoSharedLevels);
+        }
     }
 }
 

@@ -3,7 +3,7 @@
 //! screenshots, the charts, one CSV row per frame and run, and a summary whose largest total is
 //! within the 5,000-triangle budget and whose frame-time statistics are all there.
 
-use super::example_run::{example_binary, require_vulkan, varied_fraction};
+use super::example_run::{example_binary, pixels_apart, require_vulkan, varied_fraction};
 use std::path::Path;
 use std::process::Command;
 
@@ -134,4 +134,43 @@ fn aerobic_class_report_stays_within_budget() {
         let varied = varied_fraction(&dir.join(chart));
         assert!(varied > 0.01, "{chart} looks blank: {varied:.4}");
     }
+}
+
+/// A crowd at full detail drawn both ways: sharing level meshes that Bevy skins on the GPU
+/// (the default), and skinned on the CPU by the paper's blend (`--cpu-skinning`). The same
+/// scripted frame must come out the same: at most 0.1 % of pixels more than 2/255 apart.
+#[test]
+fn dancers_skinned_by_bevy_draw_as_cpu_skinned_ones() {
+    if !require_vulkan("aerobic_class_gpu_skinning") {
+        return;
+    }
+    let binary = example_binary("aerobic_class");
+    let shot = |cpu: bool| {
+        let name = if cpu { "crowd-cpu" } else { "crowd-gpu" };
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut command = Command::new(&binary);
+        command
+            .args(["--headless", "--frames", "2", "--count", "12"])
+            .args(["--budget", "4000000", "--size", "480x270", "--report"])
+            .arg(&dir);
+        if cpu {
+            command.arg("--cpu-skinning");
+        }
+        let output = command
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("run the aerobic_class example");
+        assert!(
+            output.status.success(),
+            "aerobic_class {name} failed: {}\n{}",
+            output.status,
+            String::from_utf8_lossy(&output.stderr)
+        );
+        dir.join("frame_001.png")
+    };
+    let (gpu, cpu) = (shot(false), shot(true));
+    assert!(varied_fraction(&gpu) > 0.05, "the crowd is drawn");
+    let apart = pixels_apart(&gpu, &cpu, 2);
+    assert!(apart <= 0.001, "{:.3} % of pixels apart", apart * 100.0);
 }

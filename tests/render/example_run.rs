@@ -84,6 +84,28 @@ pub fn require_vulkan(test: &str) -> bool {
 
 /// The fraction of a PNG's pixels that differ from its first pixel (0 for a blank frame).
 pub fn varied_fraction(path: &Path) -> f64 {
+    let data = png_pixels(path);
+    let first = &data[..4];
+    let pixels = data.chunks_exact(4).count();
+    let differing = data.chunks_exact(4).filter(|p| p != &first).count();
+    differing as f64 / pixels as f64
+}
+
+/// The fraction of pixels where two PNGs of one size differ by more than `tolerance` (of 255)
+/// in a channel.
+pub fn pixels_apart(a: &Path, b: &Path, tolerance: u8) -> f64 {
+    let (a, b) = (png_pixels(a), png_pixels(b));
+    assert_eq!(a.len(), b.len(), "images of one size");
+    let apart = a
+        .chunks_exact(4)
+        .zip(b.chunks_exact(4))
+        .filter(|(p, q)| p.iter().zip(*q).any(|(x, y)| x.abs_diff(*y) > tolerance))
+        .count();
+    apart as f64 / (a.len() / 4) as f64
+}
+
+/// A PNG's RGBA8 pixels.
+fn png_pixels(path: &Path) -> Vec<u8> {
     let image = bevy::image::Image::from_buffer(
         &std::fs::read(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display())),
         bevy::image::ImageType::Extension("png"),
@@ -93,9 +115,5 @@ pub fn varied_fraction(path: &Path) -> f64 {
         bevy::asset::RenderAssetUsages::default(),
     )
     .expect("decode png");
-    let data = image.data.expect("pixel data");
-    let first = &data[..4];
-    let pixels = data.chunks_exact(4).count();
-    let differing = data.chunks_exact(4).filter(|p| p != &first).count();
-    differing as f64 / pixels as f64
+    image.data.expect("pixel data")
 }
