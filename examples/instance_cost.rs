@@ -10,18 +10,28 @@
 //!
 //! `instance_cost [--counts 1000,10000,100000] [--frames 30]` (release: `make
 //! bench-instance-cost`).
+//!
+//! `--dancers 20,200`: a crowd instead, the mannequin's glTF scene (`assets/mannequin.glb`,
+//! skinned, each copy its own skeleton) spawned that many times and dancing, three ways:
+//! plain Bevy, `MultiresScene` (its instances share level meshes that Bevy skins), and
+//! `MultiresScene` skinned on the CPU (`NoSharedLevels`). Prints the process memory each
+//! dancer past the first count adds, and per frame our systems and `CheckVisibility`.
 
+#[path = "../benches/common/clip.rs"]
+mod clip;
 mod common;
 
 use bevy::camera::visibility::VisibilitySystems;
+use bevy::gltf::Gltf;
 use bevy::prelude::*;
 use bevy::render::RenderPlugin;
 use bevy::render::settings::{RenderCreation, WgpuSettings};
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
+use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodSystems, AslodViewport, MultiresMesh, MultiresModel,
-    PartitionSpec,
+    MultiresScene, MultiresSceneModels, NoSharedLevels, PartitionSpec,
 };
 use clap::Parser;
 use std::time::Instant;
@@ -34,6 +44,9 @@ struct Args {
     /// Frames measured per run (after 5 to settle).
     #[arg(long, default_value_t = 30)]
     frames: usize,
+    /// A crowd of dancing mannequins instead: the smaller count, then the larger.
+    #[arg(long, value_delimiter = ',', num_args = 1..)]
+    dancers: Vec<usize>,
 }
 
 /// Wall-clock spans of the last frame, in milliseconds.
@@ -228,8 +241,121 @@ fn run(n: usize, spec: PartitionSpec, frames: usize) -> Result<Row, String> {
     })
 }
 
+/// How the crowd is drawn.
+#[derive(Clone, Copy, PartialEq)]
+enum Crowd {
+    Plain,
+    Gpu,
+    Cpu,
+}
+
+/// Spawns `n` mannequins more (`from` already stand) drawn `way`, in a row 2 units apart,
+/// and runs the app until every one is converted and dancing.
+fn spawn_dancers(app: &mut App, way: Crowd, from: usize, n: usize) -> Result<(), String> {
+    let server = app.world().resource::<AssetServer>().clone();
+    let gltf: Handle<Gltf> = server.load("mannequin.glb");
+    let scene = server.load(GltfAssetLabel::Scene(0).from_asset("mannequin.glb"));
+    let roots: Vec<Entity> = (from..from + n)
+        .map(|i| {
+            let at = Vec3::new((i % 40) as f32 * 2.0 - 40.0, 0.0, (i / 40) as f32 * -2.0);
+            let mut root = app.world_mut().spawn((
+                WorldAssetRoot(scene.clone()),
+                Transform::from_translation(at),
+            ));
+            if way != Crowd::Plain {
+                root.insert(MultiresScene::default());
+            }
+            root.id()
+        })
+        .collect();
+    if way == Crowd::Plain {
+        // Plain scenes: wait for every copy's player.
+        for _ in 0..20_000 {
+            app.update();
+            let players = app
+                .world_mut()
+                .query_filtered::<(), With<AnimationPlayer>>()
+                .iter(app.world())
+                .count();
+            if players >= from + n {
+                return clip::start_clip(app, &gltf, &[], None, 0.7);
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        return Err("the plain crowd did not spawn".into());
+    }
+    clip::start_clip(app, &gltf, &roots, None, 0.7)?;
+    if way == Crowd::Cpu {
+        let models: Vec<Entity> = roots
+            .iter()
+            .filter_map(|&r| app.world().get::<MultiresSceneModels>(r))
+            .flat_map(|m| m.skinned.clone())
+            .collect();
+        for model in models {
+            app.world_mut().entity_mut(model).insert(NoSharedLevels);
+        }
+    }
+    Ok(())
+}
+
+/// The crowd: per way, the memory each dancer past `counts[0]` adds up to `counts[1]`, and
+/// the per-frame medians at `counts[1]`.
+fn run_crowd(counts: &[usize], frames: usize) -> Result<(), String> {
+    let (&small, &large) = match counts {
+        [small, large] if small < large => (small, large),
+        _ => return Err("--dancers takes two counts, the smaller first".into()),
+    };
+    println!(
+        "instance_cost --dancers: assets/mannequin.glb (30,180 triangles, skinned), dancing, no renderer, 1,000 triangles per dancer; {}",
+        common::machine()
+    );
+    println!(
+        "| way | KB per extra dancer | ours ms at {large} | CheckVisibility ms at {large} | ours µs per dancer |"
+    );
+    println!("|---|---:|---:|---:|---:|");
+    for (name, way) in [
+        ("plain Bevy", Crowd::Plain),
+        ("MultiresScene, skinned by Bevy (default)", Crowd::Gpu),
+        ("MultiresScene, skinned on the CPU", Crowd::Cpu),
+    ] {
+        let mut app = app((large * 1_000) as u32);
+        app.world_mut().spawn((
+            Camera3d::default(),
+            Transform::from_xyz(0.0, 3.0, 12.0).looking_at(Vec3::new(0.0, 1.0, -20.0), Vec3::Y),
+        ));
+        spawn_dancers(&mut app, way, 0, small)?;
+        for _ in 0..10 {
+            app.update();
+        }
+        let before = resident_bytes();
+        spawn_dancers(&mut app, way, small, large - small)?;
+        for _ in 0..10 {
+            app.update();
+        }
+        let per_dancer = resident_bytes().saturating_sub(before) as f64 / (large - small) as f64;
+        let (mut ours, mut visibility) = (Vec::new(), Vec::new());
+        for _ in 0..frames {
+            app.world_mut().resource_mut::<Spans>().ours = 0.0;
+            app.update();
+            let spans = app.world().resource::<Spans>();
+            ours.push(spans.ours);
+            visibility.push(spans.visibility);
+        }
+        let (ours, visibility) = (median(ours), median(visibility));
+        println!(
+            "| {name} | {:.0} | {ours:.2} | {visibility:.2} | {:.2} |",
+            per_dancer / 1024.0,
+            ours * 1e3 / large as f64
+        );
+    }
+    Ok(())
+}
+
 fn main() -> Result<(), String> {
     let args = Args::parse();
+    if !args.dancers.is_empty() {
+        return run_crowd(&args.dancers, args.frames);
+    }
     println!(
         "instance_cost: a 20,480-triangle sphere, all instances in view, no renderer, 200 triangles per instance; {}",
         common::machine()
