@@ -47,6 +47,9 @@ struct Args {
     /// A crowd of dancing mannequins instead: the smaller count, then the larger.
     #[arg(long, value_delimiter = ',', num_args = 1..)]
     dancers: Vec<usize>,
+    /// One crowd run (WAY: plain, gpu or cpu; N dancers), as `--dancers` starts them.
+    #[arg(long, num_args = 2, value_names = ["WAY", "N"])]
+    crowd_run: Vec<String>,
 }
 
 /// Wall-clock spans of the last frame, in milliseconds.
@@ -249,13 +252,21 @@ enum Crowd {
     Cpu,
 }
 
-/// Spawns `n` mannequins more (`from` already stand) drawn `way`, in a row 2 units apart,
-/// and runs the app until every one is converted and dancing.
-fn spawn_dancers(app: &mut App, way: Crowd, from: usize, n: usize) -> Result<(), String> {
+/// Spawns `n` mannequins drawn `way`, in rows 2 units apart, and runs the app until every
+/// one is converted and dancing.
+fn spawn_dancers(app: &mut App, way: Crowd, n: usize) -> Result<(), String> {
     let server = app.world().resource::<AssetServer>().clone();
     let gltf: Handle<Gltf> = server.load("mannequin.glb");
     let scene = server.load(GltfAssetLabel::Scene(0).from_asset("mannequin.glb"));
-    let roots: Vec<Entity> = (from..from + n)
+    // Loaded with everything it needs first: a dependency that lands later respawns a scene.
+    for _ in 0..20_000 {
+        if server.is_loaded_with_dependencies(&gltf) {
+            break;
+        }
+        app.update();
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let roots: Vec<Entity> = (0..n)
         .map(|i| {
             let at = Vec3::new((i % 40) as f32 * 2.0 - 40.0, 0.0, (i / 40) as f32 * -2.0);
             let mut root = app.world_mut().spawn((
@@ -277,7 +288,7 @@ fn spawn_dancers(app: &mut App, way: Crowd, from: usize, n: usize) -> Result<(),
                 .query_filtered::<(), With<AnimationPlayer>>()
                 .iter(app.world())
                 .count();
-            if players >= from + n {
+            if players >= n {
                 return clip::start_clip(app, &gltf, &[], None, 0.7);
             }
             std::thread::sleep(std::time::Duration::from_millis(1));
@@ -298,8 +309,49 @@ fn spawn_dancers(app: &mut App, way: Crowd, from: usize, n: usize) -> Result<(),
     Ok(())
 }
 
-/// The crowd: per way, the memory each dancer past `counts[0]` adds up to `counts[1]`, and
-/// the per-frame medians at `counts[1]`.
+/// One crowd run, in a process of its own (`--crowd-run WAY N`): the process's resident
+/// bytes before and after `n` dancers are spawned drawn `way` and dancing, then the
+/// per-frame medians. Prints one line: `crowd KB_ADDED OURS_MS VISIBILITY_MS MESHES MODELS`.
+fn crowd_run(way: Crowd, n: usize, frames: usize) -> Result<(), String> {
+    let mut app = app((n * 1_000) as u32);
+    // `App::run` would do this; the glTF loader registers here.
+    app.finish();
+    app.cleanup();
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Transform::from_xyz(0.0, 3.0, 12.0).looking_at(Vec3::new(0.0, 1.0, -20.0), Vec3::Y),
+    ));
+    let before = resident_bytes();
+    spawn_dancers(&mut app, way, n)?;
+    for _ in 0..10 {
+        app.update();
+    }
+    let added = resident_bytes().saturating_sub(before);
+    let (mut ours, mut visibility) = (Vec::new(), Vec::new());
+    for _ in 0..frames {
+        app.world_mut().resource_mut::<Spans>().ours = 0.0;
+        app.update();
+        let spans = app.world().resource::<Spans>();
+        ours.push(spans.ours);
+        visibility.push(spans.visibility);
+    }
+    let meshes = app.world().resource::<Assets<Mesh>>().len();
+    let models = app
+        .world_mut()
+        .query::<&MultiresModel>()
+        .iter(app.world())
+        .count();
+    println!(
+        "crowd {:.1} {:.3} {:.3} {meshes} {models}",
+        added as f64 / 1024.0,
+        median(ours),
+        median(visibility)
+    );
+    Ok(())
+}
+
+/// The crowd: per way, a process for `counts[0]` dancers and one for `counts[1]`; the
+/// memory each dancer past the first count adds, and the per-frame medians at the second.
 fn run_crowd(counts: &[usize], frames: usize) -> Result<(), String> {
     let (&small, &large) = match counts {
         [small, large] if small < large => (small, large),
@@ -310,42 +362,42 @@ fn run_crowd(counts: &[usize], frames: usize) -> Result<(), String> {
         common::machine()
     );
     println!(
-        "| way | KB per extra dancer | ours ms at {large} | CheckVisibility ms at {large} | ours µs per dancer |"
+        "| way | KB per extra dancer ({small} -> {large}) | ours ms at {large} | CheckVisibility ms at {large} | ours µs per dancer | Mesh assets | models |"
     );
-    println!("|---|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+    let run = |way: &str, n: usize| -> Result<Vec<f64>, String> {
+        let output = std::process::Command::new(&exe)
+            .args([
+                "--crowd-run",
+                way,
+                &n.to_string(),
+                "--frames",
+                &frames.to_string(),
+            ])
+            .output()
+            .map_err(|e| e.to_string())?;
+        let text = String::from_utf8_lossy(&output.stdout);
+        let line = text
+            .lines()
+            .find_map(|l| l.strip_prefix("crowd "))
+            .ok_or_else(|| format!("{way} {n}: {}", String::from_utf8_lossy(&output.stderr)))?;
+        Ok(line.split(' ').filter_map(|v| v.parse().ok()).collect())
+    };
     for (name, way) in [
-        ("plain Bevy", Crowd::Plain),
-        ("MultiresScene, skinned by Bevy (default)", Crowd::Gpu),
-        ("MultiresScene, skinned on the CPU", Crowd::Cpu),
+        ("plain Bevy", "plain"),
+        ("MultiresScene, skinned by Bevy (default)", "gpu"),
+        ("MultiresScene, skinned on the CPU", "cpu"),
     ] {
-        let mut app = app((large * 1_000) as u32);
-        app.world_mut().spawn((
-            Camera3d::default(),
-            Transform::from_xyz(0.0, 3.0, 12.0).looking_at(Vec3::new(0.0, 1.0, -20.0), Vec3::Y),
-        ));
-        spawn_dancers(&mut app, way, 0, small)?;
-        for _ in 0..10 {
-            app.update();
-        }
-        let before = resident_bytes();
-        spawn_dancers(&mut app, way, small, large - small)?;
-        for _ in 0..10 {
-            app.update();
-        }
-        let per_dancer = resident_bytes().saturating_sub(before) as f64 / (large - small) as f64;
-        let (mut ours, mut visibility) = (Vec::new(), Vec::new());
-        for _ in 0..frames {
-            app.world_mut().resource_mut::<Spans>().ours = 0.0;
-            app.update();
-            let spans = app.world().resource::<Spans>();
-            ours.push(spans.ours);
-            visibility.push(spans.visibility);
-        }
-        let (ours, visibility) = (median(ours), median(visibility));
+        let (a, b) = (run(way, small)?, run(way, large)?);
         println!(
-            "| {name} | {:.0} | {ours:.2} | {visibility:.2} | {:.2} |",
-            per_dancer / 1024.0,
-            ours * 1e3 / large as f64
+            "| {name} | {:.0} | {:.2} | {:.2} | {:.2} | {:.0} | {:.0} |",
+            (b[0] - a[0]) / (large - small) as f64,
+            b[1],
+            b[2],
+            b[1] * 1e3 / large as f64,
+            b[3],
+            b[4]
         );
     }
     Ok(())
@@ -353,6 +405,15 @@ fn run_crowd(counts: &[usize], frames: usize) -> Result<(), String> {
 
 fn main() -> Result<(), String> {
     let args = Args::parse();
+    if let [way, n] = args.crowd_run.as_slice() {
+        let way = match way.as_str() {
+            "plain" => Crowd::Plain,
+            "gpu" => Crowd::Gpu,
+            "cpu" => Crowd::Cpu,
+            other => return Err(format!("no crowd way {other}")),
+        };
+        return crowd_run(way, n.parse().map_err(|_| "a count")?, args.frames);
+    }
     if !args.dancers.is_empty() {
         return run_crowd(&args.dancers, args.frames);
     }
