@@ -317,10 +317,13 @@ fn crowd_run(way: Crowd, n: usize, frames: usize) -> Result<(), String> {
     // `App::run` would do this; the glTF loader registers here.
     app.finish();
     app.cleanup();
-    app.world_mut().spawn((
-        Camera3d::default(),
-        Transform::from_xyz(0.0, 3.0, 12.0).looking_at(Vec3::new(0.0, 1.0, -20.0), Vec3::Y),
-    ));
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            Transform::from_xyz(0.0, 3.0, 12.0).looking_at(Vec3::new(0.0, 1.0, -20.0), Vec3::Y),
+        ))
+        .id();
     let before = resident_bytes();
     spawn_dancers(&mut app, way, n)?;
     for _ in 0..10 {
@@ -328,13 +331,28 @@ fn crowd_run(way: Crowd, n: usize, frames: usize) -> Result<(), String> {
     }
     let added = resident_bytes().saturating_sub(before);
     let (mut ours, mut visibility) = (Vec::new(), Vec::new());
-    for _ in 0..frames {
+    let (mut upload, mut changed, mut made) = (Vec::new(), Vec::new(), Vec::new());
+    for frame in 0..frames {
+        // The camera walks into the crowd: levels move every frame.
+        let at = Vec3::new(0.0, 3.0, 12.0 - 20.0 * frame as f32 / frames as f32);
+        *app.world_mut().get_mut::<Transform>(camera).unwrap() =
+            Transform::from_translation(at).looking_at(at + Vec3::new(0.0, -0.1, -1.0), Vec3::Y);
         app.world_mut().resource_mut::<Spans>().ours = 0.0;
         app.update();
         let spans = app.world().resource::<Spans>();
         ours.push(spans.ours);
         visibility.push(spans.visibility);
+        let stats = app.world().resource::<AslodStats>();
+        upload.push(stats.upload_ms);
+        changed.push(stats.regions_changed as f64);
+        made.push(stats.upload_bytes as f64);
     }
+    eprintln!(
+        "upload {:.3} ms, regions changed {}, bytes made {}",
+        median(upload),
+        median(changed),
+        median(made)
+    );
     let meshes = app.world().resource::<Assets<Mesh>>().len();
     let models = app
         .world_mut()

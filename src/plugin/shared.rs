@@ -447,17 +447,14 @@ fn level_mesh(
 ) -> Mesh {
     caches.write_indices(regions, r, indices);
     let table = regions.regions()[r].progressive_mesh().vertices();
-    optimize_vertex_cache(indices, table.vertex_count());
-    let mut remap = vec![u32::MAX; table.vertex_count()];
-    let mut used = Vec::new();
-    for i in indices.iter_mut() {
-        let slot = &mut remap[*i as usize];
-        if *slot == u32::MAX {
-            *slot = used.len() as u32;
-            used.push(*i);
-        }
-        *i = *slot;
-    }
+    // The level's own vertices first, so that reordering costs the level, not its region's
+    // whole vertex table; then in order of first use again, as the new order uses them.
+    let level = renumber_by_first_use(indices, table.vertex_count());
+    optimize_vertex_cache(indices, level.len());
+    let used: Vec<u32> = renumber_by_first_use(indices, level.len())
+        .into_iter()
+        .map(|i| level[i as usize])
+        .collect();
     let (joints, weights) = match skin {
         Some(skin) => {
             let (joints, weights) = skin.influences(r, &used);
@@ -482,6 +479,22 @@ fn level_mesh(
         warn_once!("a skinned level mesh has no joint bounds ({error}): culled by its last box");
     }
     mesh
+}
+
+/// Renumbers the vertices of `indices` (below `vertex_count`) in the order they are first
+/// used; returns, per new number, the old one.
+fn renumber_by_first_use(indices: &mut [u32], vertex_count: usize) -> Vec<u32> {
+    let mut remap = vec![u32::MAX; vertex_count];
+    let mut used = Vec::new();
+    for i in indices.iter_mut() {
+        let slot = &mut remap[*i as usize];
+        if *slot == u32::MAX {
+            *slot = used.len() as u32;
+            used.push(*i);
+        }
+        *i = *slot;
+    }
+    used
 }
 
 /// A mesh's vertex and index bytes, as the renderer holds them.
