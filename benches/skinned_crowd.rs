@@ -6,6 +6,7 @@
 //!
 //! `cargo bench --bench skinned_crowd`
 
+#[allow(dead_code)]
 #[path = "common/clip.rs"]
 mod clip;
 mod common;

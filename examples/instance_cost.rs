@@ -31,7 +31,7 @@ use bevy::winit::WinitPlugin;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodSystems, AslodViewport, MultiresMesh, MultiresModel,
-    MultiresScene, MultiresSceneModels, NoSharedLevels, PartitionSpec,
+    MultiresScene, PartitionSpec,
 };
 use clap::Parser;
 use std::time::Instant;
@@ -297,14 +297,7 @@ fn spawn_dancers(app: &mut App, way: Crowd, n: usize) -> Result<(), String> {
     }
     clip::start_clip(app, &gltf, &roots, None, 0.7)?;
     if way == Crowd::Cpu {
-        let models: Vec<Entity> = roots
-            .iter()
-            .filter_map(|&r| app.world().get::<MultiresSceneModels>(r))
-            .flat_map(|m| m.skinned.clone())
-            .collect();
-        for model in models {
-            app.world_mut().entity_mut(model).insert(NoSharedLevels);
-        }
+        clip::skin_on_cpu(app, &roots);
     }
     Ok(())
 }

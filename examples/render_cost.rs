@@ -73,8 +73,8 @@ use bevy_aslod::bevy_mesh::to_bevy_mesh;
 use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::plugin::{
     AslodPlugin, AslodStats, AslodSystems, LodRegion, MultiresInstance, MultiresMesh,
-    MultiresModel, MultiresScene, MultiresSceneModels, NoSharedLevels, PartitionSpec,
-    PolygonBudget, RegionUpload, RegionUploadStats, SharedLevels,
+    MultiresModel, MultiresScene, NoSharedLevels, PartitionSpec, PolygonBudget, RegionUpload,
+    RegionUploadStats, SharedLevels,
 };
 use bevy_aslod::regions::{GridPlane, Partition, RegionCaches};
 use std::collections::HashMap;
@@ -1301,15 +1301,7 @@ fn spawn_crowd(app: &mut App, way: &str, n: usize) -> Result<(), String> {
     if way.starts_with('c') {
         clip::start_clip(app, &gltf, &roots, None, 0.7)?;
         if way == "c-cpu" {
-            // The paper's CPU blend: every dancer on meshes of its own.
-            let models: Vec<Entity> = roots
-                .iter()
-                .filter_map(|&r| app.world().get::<MultiresSceneModels>(r))
-                .flat_map(|m| m.skinned.clone())
-                .collect();
-            for model in models {
-                app.world_mut().entity_mut(model).insert(NoSharedLevels);
-            }
+            clip::skin_on_cpu(app, &roots);
         }
         return Ok(());
     }

@@ -3,7 +3,7 @@
 use bevy::gltf::Gltf;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
-use bevy_aslod::plugin::MultiresSceneModels;
+use bevy_aslod::plugin::{MultiresSceneModels, NoSharedLevels};
 use std::time::Duration;
 
 /// Runs the app until every scene root is converted (`MultiresScene`) and the glTF's clip
@@ -54,4 +54,17 @@ pub fn start_clip(
         std::thread::sleep(Duration::from_millis(2));
     }
     Err("the scene did not load and convert in five minutes".into())
+}
+
+/// The paper's CPU blend for the crowd under `roots`: each converted scene's skinned models
+/// get `NoSharedLevels`, meshes of their own that the plugin skins.
+pub fn skin_on_cpu(app: &mut App, roots: &[Entity]) {
+    let models: Vec<Entity> = roots
+        .iter()
+        .filter_map(|&r| app.world().get::<MultiresSceneModels>(r))
+        .flat_map(|m| m.skinned.clone())
+        .collect();
+    for model in models {
+        app.world_mut().entity_mut(model).insert(NoSharedLevels);
+    }
 }

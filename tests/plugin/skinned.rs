@@ -184,7 +184,6 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
     let world = app.world();
     let models = world.get::<MultiresSceneModels>(root).expect("converted");
     let meshes = world.resource::<Assets<Mesh>>();
-    let bindposes = world.resource::<Assets<SkinnedMeshInverseBindposes>>();
     let mut out = Vec::new();
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -201,7 +200,6 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
                     .0,
             )
             .expect("source mesh");
-        let ib = bindposes.get(&skin.inverse_bindposes).expect("bindposes");
         let p = positions(source);
         let Some(VertexAttributeValues::Uint16x4(joints)) =
             source.attribute(Mesh::ATTRIBUTE_JOINT_INDEX)
@@ -213,12 +211,7 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
         else {
             panic!("weights")
         };
-        let matrices: Vec<Mat4> = skin
-            .joints
-            .iter()
-            .zip(ib.iter())
-            .map(|(&j, ib)| world.get::<GlobalTransform>(j).expect("joint").to_matrix() * *ib)
-            .collect();
+        let matrices = skinning_matrices(world, skin);
         let reference = |v: usize| -> Vec3 {
             let pos = Vec3::from(p[v]);
             let sum: f32 = weights[v].iter().sum();
@@ -284,19 +277,22 @@ fn compare(app: &mut App, root: Entity) -> (f32, usize, Vec<(u32, Vec3, Vec3)>) 
     (hi.y - lo.y, triangles, out)
 }
 
+/// `G_j IB_j` for each joint of `skin`, in its order.
+fn skinning_matrices(world: &World, skin: &SkinnedMesh) -> Vec<Mat4> {
+    let bindposes = world.resource::<Assets<SkinnedMeshInverseBindposes>>();
+    let ib = bindposes.get(&skin.inverse_bindposes).expect("bindposes");
+    skin.joints
+        .iter()
+        .zip(ib.iter())
+        .map(|(&j, ib)| world.get::<GlobalTransform>(j).expect("joint").to_matrix() * *ib)
+        .collect()
+}
+
 /// Where Bevy's skinning shader puts each vertex of a region `entity` draws from `mesh`, when
 /// Bevy skins it (a shared level mesh): `Σ wₖ G_jₖ IB_jₖ p` over the joints its
 /// `SkinnedMesh` lists.
 fn skinned_by_bevy(world: &World, entity: Entity, mesh: &Mesh) -> Option<Vec<Vec3>> {
-    let skin = world.get::<SkinnedMesh>(entity)?;
-    let bindposes = world.resource::<Assets<SkinnedMeshInverseBindposes>>();
-    let ib = bindposes.get(&skin.inverse_bindposes).expect("bindposes");
-    let matrices: Vec<Mat4> = skin
-        .joints
-        .iter()
-        .zip(ib.iter())
-        .map(|(&j, ib)| world.get::<GlobalTransform>(j).expect("joint").to_matrix() * *ib)
-        .collect();
+    let matrices = skinning_matrices(world, world.get::<SkinnedMesh>(entity)?);
     let (
         Some(VertexAttributeValues::Uint16x4(joints)),
         Some(VertexAttributeValues::Float32x4(weights)),
