@@ -416,6 +416,12 @@ fn mannequin_matches_reference_skinning_at_full_and_reduced_detail() {
     check_against_reference(ASSETS, MANNEQUIN, "Aerobics", true, false);
 }
 
+/// RobotExpressive's four skinned primitives on one skeleton, shared and skinned by Bevy.
+#[test]
+fn robot_skinned_by_bevy_matches_reference_skinning() {
+    check_against_reference(TESTDATA, ROBOT, "Dance", false, true);
+}
+
 /// The same on the path crowds take: the mannequin's instances share level meshes, which
 /// Bevy skins on the GPU from their joints and weights; every vertex it draws, on both
 /// sides of every region border, lands where reference skinning puts it.
