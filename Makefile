@@ -103,6 +103,7 @@ bench-instances: deps
 # The per-instance CPU cost without a renderer: the plugin against Bevy's frustum culling.
 bench-instance-cost:
 	$(CARGO) run --release --example instance_cost -- --counts 1000,10000,100000 --frames 30
+	$(CARGO) run --release --example instance_cost -- --dancers 20,200 --frames 30
 
 # ASLOD Figure 11 measured (docs/performance.md): the aerobic class at 960x540 (lavapipe is
 # bound by pixels there) and 240x135 (by geometry), 5 interleaved runs each, and the
