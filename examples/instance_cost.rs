@@ -281,19 +281,8 @@ fn spawn_dancers(app: &mut App, way: Crowd, n: usize) -> Result<(), String> {
         .collect();
     if way == Crowd::Plain {
         // Plain scenes: wait for every copy's player.
-        for _ in 0..20_000 {
-            app.update();
-            let players = app
-                .world_mut()
-                .query_filtered::<(), With<AnimationPlayer>>()
-                .iter(app.world())
-                .count();
-            if players >= n {
-                return clip::start_clip(app, &gltf, &[], None, 0.7);
-            }
-            std::thread::sleep(std::time::Duration::from_millis(1));
-        }
-        return Err("the plain crowd did not spawn".into());
+        clip::wait_for_players(app, n)?;
+        return clip::start_clip(app, &gltf, &[], None, 0.7);
     }
     clip::start_clip(app, &gltf, &roots, None, 0.7)?;
     if way == Crowd::Cpu {

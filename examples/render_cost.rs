@@ -1306,21 +1306,7 @@ fn spawn_crowd(app: &mut App, way: &str, n: usize) -> Result<(), String> {
         return Ok(());
     }
     // Plain scenes: wait for every instance's player, then start the clip on all of them.
-    let start = Instant::now();
-    loop {
-        app.update();
-        let players = app
-            .world_mut()
-            .query_filtered::<(), With<AnimationPlayer>>()
-            .iter(app.world())
-            .count();
-        if players >= n {
-            break;
-        }
-        if start.elapsed() > Duration::from_secs(300) {
-            return Err("the crowd did not spawn in five minutes".into());
-        }
-    }
+    clip::wait_for_players(app, n)?;
     if way == "b" {
         add_skinned_chains(app)?;
     }

@@ -56,6 +56,27 @@ pub fn start_clip(
     Err("the scene did not load and convert in five minutes".into())
 }
 
+/// Runs the app until `n` animation players exist (plain scenes spawned, for the crowd).
+///
+/// # Errors
+/// When they have not come in five minutes.
+pub fn wait_for_players(app: &mut App, n: usize) -> Result<(), String> {
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(300) {
+        app.update();
+        let players = app
+            .world_mut()
+            .query_filtered::<(), With<AnimationPlayer>>()
+            .iter(app.world())
+            .count();
+        if players >= n {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    Err("the crowd did not spawn in five minutes".into())
+}
+
 /// The paper's CPU blend for the crowd under `roots`: each converted scene's skinned models
 /// get `NoSharedLevels`, meshes of their own that the plugin skins.
 pub fn skin_on_cpu(app: &mut App, roots: &[Entity]) {
