@@ -491,9 +491,13 @@ fn small_assets() -> MrmFile {
 /// skinned.
 fn assets_of(mesh: &IndexedMesh, name: &str) -> MrmFile {
     let mesh = mesh.clone();
-    let options = BuildOptions::default().with_view_dependent(true);
+    // The plain asset has a merged root (the `ROOT` section), the skinned one none.
+    let options = BuildOptions::default()
+        .with_view_dependent(true)
+        .with_root_ratio(0.5);
     let partition = Partition::clusters(&mesh, 4).unwrap();
     let plain = BakedMesh::build(&mesh, &partition, &options).unwrap();
+    assert!(plain.regions.root().is_some());
     // Bone 0 holds the bottom, bone 1 the top, and a band blends them.
     let mut skinned = mesh.clone();
     let (joints, weights) = skinned
@@ -525,8 +529,11 @@ fn assets_round_trip_field_for_field() {
     for name in ["cow.obj", "fandisk.obj", "spot.obj", "stanford-bunny.obj"] {
         let mesh = testdata_mesh(name);
         let partition = Partition::clusters(&mesh, 16).unwrap();
-        let options = BuildOptions::default().with_view_dependent(name == "cow.obj");
+        let options = BuildOptions::default()
+            .with_view_dependent(name == "cow.obj")
+            .with_root_ratio(if name == "spot.obj" { 0.0 } else { 0.3 });
         let baked = BakedMesh::build(&mesh, &partition, &options).unwrap();
+        assert_eq!(baked.regions.root().is_some(), name != "spot.obj");
         files.push(MrmFile {
             build: build_info(name, "clusters 16", options),
             meshes: vec![(name.into(), baked)],

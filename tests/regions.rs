@@ -745,3 +745,71 @@ fn an_error_split_favours_near_regions_and_lowers_the_error() {
         "RMS {rms_error} by error against {rms_ratio} by ratio"
     );
 }
+
+proptest! {
+    #![proptest_config(config(24))]
+
+    /// The merged root begins exactly where the regions leave off (its finest level is every
+    /// region at its kept level, triangle for triangle), and every level below is crack-free:
+    /// a closed mesh stays closed, an open one opens nowhere off its own border.
+    #[test]
+    fn the_merged_root_starts_at_the_kept_levels_and_stays_crack_free(
+        (mesh, closed) in arb_mesh(),
+        choice in any::<u8>(),
+        n in 0usize..64,
+        seed in any::<u64>(),
+        ratio in 0.05f32..=1.0,
+        steps in prop::collection::vec(0.0f64..=1.0, 1..8),
+    ) {
+        let partition = arb_partition(&mesh, choice, n, seed);
+        // The topology-keeping rules, whose invariants the test holds.
+        let options = BuildOptions::default()
+            .with_permissive(false)
+            .with_root_ratio(ratio);
+        let regions = RegionMesh::build(&mesh, &partition, &options).expect("valid mesh");
+        let Some(root) = regions.root() else {
+            prop_assert_eq!(regions.regions().len(), 1, "every cut mesh has a root");
+            return Ok(());
+        };
+        let mut caches = RegionCaches::new(&regions);
+        for (r, &level) in root.kept_levels().iter().enumerate() {
+            caches.set_level(&regions, r, level as usize);
+        }
+        let kept = assemble(&regions, &mut caches);
+        let pm = root.progressive_mesh();
+        let global = root.global_vertices();
+        let mut cache = bevy_aslod::multires::PolygonCache::new(pm);
+        let at = |cache: &bevy_aslod::multires::PolygonCache| -> Vec<u32> {
+            cache.indices().iter().map(|&v| global[v as usize]).collect()
+        };
+        prop_assert_eq!(triangle_multiset(&at(&cache)), triangle_multiset(&kept));
+        prop_assert!(root.max_triangles() <= mesh.triangle_count());
+        let outline = border_edges(&mesh.positions, &mesh.indices);
+        let on_outline: std::collections::HashSet<u32> =
+            outline.iter().flat_map(|&(a, b)| [a, b]).collect();
+        let weld = bevy_aslod::mesh::weld_positions(&mesh.positions);
+        for f in steps {
+            cache.set_triangle_count(pm, (f * root.max_triangles() as f64) as usize);
+            let level = at(&cache);
+            // Every vertex is a source vertex, where the source has it.
+            for &v in cache.indices() {
+                prop_assert_eq!(pm.vertices().positions[v as usize], mesh.positions[global[v as usize] as usize]);
+            }
+            if closed {
+                assert_closed(&mesh.positions, &level, "a root level");
+            } else {
+                let edges = welded_directed_edges(&mesh.positions, &level);
+                for (&(a, b), &count) in &edges {
+                    prop_assert_eq!(count, 1, "edge {}->{} used twice", a, b);
+                    if !edges.contains_key(&(b, a)) {
+                        prop_assert!(
+                            on_outline.contains(&weld.remap[a as usize])
+                                && on_outline.contains(&weld.remap[b as usize]),
+                            "open edge {}->{} off the original border", a, b
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

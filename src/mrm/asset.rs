@@ -6,7 +6,7 @@ use super::{BakedMesh, BakedSkin, BuildInfo, FORMAT_VERSION, MrmError, MrmFile, 
 use crate::bounds::Obb;
 use crate::mesh::LoadLimits;
 use crate::multires::{BuildOptions, CollapseOperator};
-use crate::regions::{FrontEvent, Partition, Region, RegionMesh};
+use crate::regions::{FrontEvent, MergedRoot, Partition, Region, RegionMesh};
 use crate::skin::SkinRegionKind;
 use glam::{Mat3, Mat4, Vec3};
 
@@ -15,7 +15,7 @@ pub(super) const FILE_SECTIONS: [([u8; 4], bool); 3] =
     [(*b"SRC ", true), (*b"KEYS", true), (*b"ASET", true)];
 
 /// The sections of one asset (a container nested in `ASET`), in order.
-const ENTRY_SECTIONS: [([u8; 4], bool); 13] = [
+const ENTRY_SECTIONS: [([u8; 4], bool); 14] = [
     (*b"HEAD", true),
     (*b"POS ", true),
     (*b"NRM ", false),
@@ -29,6 +29,21 @@ const ENTRY_SECTIONS: [([u8; 4], bool); 13] = [
     (*b"RGNS", true),
     (*b"SKIN", false),
     (*b"VARI", false),
+    // From version 5: the merged root, when the asset has one.
+    (*b"ROOT", false),
+];
+
+/// The sections of the merged root (a container nested in `ROOT`), in order.
+const ROOT_SECTIONS: [([u8; 4], bool); 9] = [
+    (*b"RHED", true),
+    (*b"GLOB", true),
+    (*b"IDX ", true),
+    (*b"STEP", true),
+    (*b"CORN", true),
+    (*b"PAIR", true),
+    (*b"FLDS", true),
+    (*b"ERRS", true),
+    (*b"KEPT", true),
 ];
 
 /// The sections of one region (a container nested in `RGNS`), in order.
@@ -116,6 +131,7 @@ fn build_bytes(b: &BuildInfo) -> Vec<u8> {
     }
     out.extend_from_slice(&o.weld_distance.to_le_bytes());
     out.push(u8::from(o.permissive));
+    out.extend_from_slice(&o.root_ratio.to_le_bytes());
     out
 }
 
@@ -156,7 +172,82 @@ fn write_entry(m: &BakedMesh) -> Vec<u8> {
     if let Some(variable) = &m.variable {
         sections.push((*b"VARI", progressive::write(variable)));
     }
+    if let Some(root) = m.regions.root() {
+        sections.push((*b"ROOT", write_root(root)));
+    }
     container::write(FORMAT_VERSION, &sections)
+}
+
+fn write_root(root: &MergedRoot) -> Vec<u8> {
+    let pm = &root.mesh;
+    let (narrow, indices, steps, corners, pairs) = progressive::layout_counts(&pm.records);
+    let mut head = Vec::new();
+    for x in [
+        root.global.len(),
+        pm.base_triangles as usize,
+        indices,
+        steps,
+        corners,
+        pairs,
+        root.kept.len(),
+    ] {
+        put_u32(&mut head, x);
+    }
+    head.extend_from_slice(&[narrow, 0, 0, 0]);
+    let mut sections = vec![(*b"RHED", head), (*b"GLOB", u32s(&root.global))];
+    progressive::record_sections(&mut sections, pm);
+    sections.push((*b"KEPT", u32s(&root.kept)));
+    container::write(FORMAT_VERSION, &sections)
+}
+
+/// The merged root of an asset whose regions are `regions` (checked: its vertices in the
+/// source's table, one kept level per region, each one of that region's levels).
+fn read_root(
+    s: Section<'_>,
+    version: u32,
+    source: &crate::mesh::IndexedMesh,
+    regions: &[Region],
+    tally: &mut Tally<'_>,
+) -> Result<MergedRoot, MrmError> {
+    let sections = container::read(s.bytes, s.offset, version, &ROOT_SECTIONS)?;
+    let mut r = Reader::new(section(&sections, b"RHED")?);
+    let local = r.u32()? as usize;
+    let counts = Counts {
+        vertices: local,
+        base: r.u32()? as usize,
+        indices: r.u32()? as usize,
+        steps: r.u32()? as usize,
+        corners: r.u32()? as usize,
+        pairs: r.u32()? as usize,
+    };
+    let kept_count = r.u32()? as usize;
+    let [narrow, _, _, _] = r.array::<4>()?;
+    r.finish()?;
+    if kept_count != regions.len() {
+        return Err(r.invalid(24, "the kept level count differs from the region count"));
+    }
+    let vertex_bytes = source.memory_bytes() / source.vertex_count().max(1);
+    tally.add(local, vertex_bytes, counts.indices / 3)?;
+    let (global, rg) =
+        Reader::whole::<4, _>(section(&sections, b"GLOB")?, local, u32::from_le_bytes)?;
+    if let Some(k) = global
+        .iter()
+        .position(|&g| g as usize >= source.vertex_count())
+    {
+        return Err(rg.invalid(4 * k, "a vertex names one past the source's vertex table"));
+    }
+    let vertices = source.subset(&global);
+    let mesh = progressive::read_mesh(&sections, &r, version, vertices, &counts, narrow, 0)?;
+    let (kept, rk) =
+        Reader::whole::<4, _>(section(&sections, b"KEPT")?, kept_count, u32::from_le_bytes)?;
+    if let Some(k) = kept
+        .iter()
+        .zip(regions)
+        .position(|(&level, region)| level as usize >= region.mesh.level_count())
+    {
+        return Err(rk.invalid(4 * k, "a kept level is past its region's levels"));
+    }
+    Ok(MergedRoot { mesh, global, kept })
 }
 
 fn write_region(r: &Region) -> Vec<u8> {
@@ -357,6 +448,7 @@ fn read_build(s: Section<'_>, version: u32) -> Result<BuildInfo, MrmError> {
         color_weight: 0.0,
         weld_distance: 0.0,
         permissive: false,
+        root_ratio: 0.0,
     };
     let mut options = options;
     if version >= 3 {
@@ -367,6 +459,9 @@ fn read_build(s: Section<'_>, version: u32) -> Result<BuildInfo, MrmError> {
     if version >= 4 {
         options.weld_distance = r.f32()?;
         options.permissive = r.u8()? != 0;
+    }
+    if version >= 5 {
+        options.root_ratio = r.f32()?;
     }
     r.finish()?;
     Ok(BuildInfo {
@@ -511,11 +606,16 @@ fn read_entry(
     } else {
         None
     };
+    let root = match sections.iter().find(|s| &s.tag == b"ROOT") {
+        Some(&s) => Some(read_root(s, version, &source, &regions, tally)?),
+        None => None,
+    };
     Ok(BakedMesh {
         regions: RegionMesh::from_parts(
             Partition::from_region_of(region_of, region_count),
             regions,
             n,
+            root,
         ),
         obbs,
         skin,

@@ -36,7 +36,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! # Layout (format version 4)
+//! # Layout (format version 5)
 //!
 //! Little-endian throughout. Every file is a **container**, and so are the assets and
 //! regions inside it: a header and a section table,
@@ -57,7 +57,7 @@
 //!
 //! | tag | contents |
 //! |---|---|
-//! | `SRC ` | source hash (`u64`, FNV-1a of the source file); source name, partition, writer (strings); skinned (`u8`) and δ (`f32`); the [`BuildOptions`]: `min_triangles` (`u64`), `max_error` (`f32`), `border_weight`, `min_normal_cos`, `regularization`, `local_weight`, `weight_exponent` (`f64` each), `view_dependent` (`u8`), `pair_distance` (`f32`), `operator` (`u8`: 0 edge, 1 triangle); from version 3, `normal_weight`, `uv_weight`, `color_weight` (`f64` each; 0 for older files); from version 4, `weld_distance` (`f32`) and `permissive` (`u8`) (0 and off for older files) |
+//! | `SRC ` | source hash (`u64`, FNV-1a of the source file); source name, partition, writer (strings); skinned (`u8`) and δ (`f32`); the [`BuildOptions`]: `min_triangles` (`u64`), `max_error` (`f32`), `border_weight`, `min_normal_cos`, `regularization`, `local_weight`, `weight_exponent` (`f64` each), `view_dependent` (`u8`), `pair_distance` (`f32`), `operator` (`u8`: 0 edge, 1 triangle); from version 3, `normal_weight`, `uv_weight`, `color_weight` (`f64` each; 0 for older files); from version 4, `weld_distance` (`f32`) and `permissive` (`u8`) (0 and off for older files); from version 5, `root_ratio` (`f32`; 0 for older files) |
 //! | `KEYS` | asset count `A` (`u32`); per asset: its key (string) and its container's length (`u64`) |
 //! | `ASET` | the `A` asset containers, one after the other |
 //!
@@ -72,6 +72,7 @@
 //! | `RGNS` | yes | `R` (`u32`), `R` container lengths (`u64`), then the `R` region containers |
 //! | `SKIN` | flag | joint count `J` (`u32`); `R` (`u32`); per region its kind (`u8`: 0 rigid, 1 deformable), a zero byte and two bones (`u16`; a rigid one's second is 0); `J` inverse bind matrices (16 × `f32`, by columns); vertices with over two influences and vertices normalised (`u32` each); joint name count (`u32`: 0 or `J`) and the names (strings) |
 //! | `VARI` | flag | the whole mesh as one progressive mesh with view data: a nested container laid out as a progressive-mesh file (below) |
+//! | `ROOT` | no | from version 5, the merged root ([`MergedRoot`](crate::regions::MergedRoot)), when the asset has one: a nested container (below) |
 //!
 //! **A region** (a container in `RGNS`):
 //!
@@ -81,6 +82,15 @@
 //! | `GLOB` | yes | `L` source vertex ids (`u32`): local vertex → source vertex |
 //! | `IDX ` … `VIEW` | as below | the region's records over its local vertices (`FLDS` from version 4) |
 //! | `LIST` | yes | border triangles, fin-prone triangles, neighbour regions, position links (`u32` each, in that order); front events (step, region, corner, before, after: 5 × `u32`) |
+//!
+//! **The merged root** (a container in `ROOT`):
+//!
+//! | tag | required | contents |
+//! |---|---|---|
+//! | `RHED` | yes | local vertex count `L`, base triangles, index count `I`, steps `S`, corner records `C`, pairs `P`, region count `R` (`u32` each); layout (`u8`, as `MESH`) and three zero bytes |
+//! | `GLOB` | yes | `L` source vertex ids (`u32`) |
+//! | `IDX ` … `ERRS` | yes | the root's records over its local vertices |
+//! | `KEPT` | yes | `R` levels (`u32`): each region's level when the root was made from it |
 //!
 //! **A progressive mesh** (its first section is `MESH`; every version 1 file):
 //!
@@ -134,7 +144,7 @@ use thiserror::Error;
 /// The format version this crate writes and the newest it reads. Version 1 files hold a
 /// progressive mesh only, versions 1 and 2 no tangents or further attributes, and versions
 /// 1 to 3 the classic record widths (no `FLDS`); they still load.
-pub const FORMAT_VERSION: u32 = 4;
+pub const FORMAT_VERSION: u32 = 5;
 
 /// Everything a multiresolution asset holds, without Bevy: what an `.mrm` file stores per
 /// entry, and what the plugin's `MultiresMesh` is made from without building anything.

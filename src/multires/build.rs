@@ -158,6 +158,16 @@ pub struct BuildOptions {
     /// [`view_dependent`](Self::view_dependent) (its refinement needs manifold steps).
     /// Default: `true`; `false` keeps the topology (closed stays closed, seams stay seams).
     pub permissive: bool,
+    /// Partitioned meshes ([`RegionMesh`](crate::regions::RegionMesh)): the share of the
+    /// regions' full-detail triangles at which the merged root starts, the whole model as
+    /// one progressive mesh made from every region at the level a view of the whole model
+    /// gives it there, simplified on with no border held
+    /// ([`MergedRoot`](crate::regions::MergedRoot)). `0.3` puts the partition's cost at 20 %
+    /// and 5 % of the triangles within a few percent of the whole mesh simplified at once
+    /// (`docs/performance.md`, "A far model is one mesh"). `0.0` builds no root; values
+    /// outside `0..=1` or not finite build none, with a warning. Whole meshes ignore it.
+    /// Default: `0.0` (the plugin does not draw the root yet).
+    pub root_ratio: f32,
 }
 
 /// The simplification operator of a build ([`BuildOptions::operator`]).
@@ -196,6 +206,7 @@ with_setters!(BuildOptions {
     color_weight: f64 => with_color_weight,
     weld_distance: f32 => with_weld_distance,
     permissive: bool => with_permissive,
+    root_ratio: f32 => with_root_ratio,
 });
 
 impl Default for BuildOptions {
@@ -216,6 +227,7 @@ impl Default for BuildOptions {
             color_weight: 0.25,
             weld_distance: 1e-6,
             permissive: true,
+            root_ratio: 0.0,
         }
     }
 }

@@ -142,13 +142,21 @@ impl RegionMesh {
             region.fin_prone =
                 fin_prone(region, r as u32, &region_of, &moves, &weld.remap, &root_at);
         }
-        Ok(Self {
+        let mut built = Self {
             partition: Partition::from_region_of(region_of, count),
             regions,
             vertex_count: mesh.vertex_count(),
+            root: None,
             built: true,
             morph_tables: std::sync::OnceLock::new(),
-        })
+        };
+        let ratio = options.root_ratio;
+        if !(ratio.is_finite() && (0.0..=1.0).contains(&ratio)) {
+            log::warn!("BuildOptions::root_ratio = {ratio} is outside 0..=1: no root is built");
+        } else if ratio > 0.0 && count > 1 {
+            built.root = Some(super::merge::build_root(&mesh, &built, ratio, options)?);
+        }
+        Ok(built)
     }
 }
 

@@ -59,12 +59,14 @@ mod borders;
 mod build;
 mod cache;
 mod error_split;
+mod merge;
 mod morph;
 mod partition;
 mod util;
 
 pub use cache::RegionCaches;
 pub use error_split::ErrorCurves;
+pub use merge::MergedRoot;
 pub use morph::{Geomorphs, MorphGroup, MorphKind, VertexMorph};
 pub use partition::{GridPlane, Partition};
 
@@ -257,6 +259,9 @@ pub struct RegionMesh {
     partition: Partition,
     regions: Vec<Region>,
     vertex_count: usize,
+    /// The whole model as one mesh below its regions' kept levels
+    /// ([`BuildOptions::root_ratio`](crate::multires::BuildOptions::root_ratio)).
+    pub(crate) root: Option<MergedRoot>,
     /// Built here, not read from a file: the fin-prone lists are the builder's, so debug
     /// builds check that no other border triangles meet. A file's are only range-checked.
     pub(crate) built: bool,
@@ -271,6 +276,7 @@ impl PartialEq for RegionMesh {
         self.partition == other.partition
             && self.regions == other.regions
             && self.vertex_count == other.vertex_count
+            && self.root == other.root
     }
 }
 
@@ -280,11 +286,13 @@ impl RegionMesh {
         partition: Partition,
         regions: Vec<Region>,
         vertex_count: usize,
+        root: Option<MergedRoot>,
     ) -> Self {
         Self {
             partition,
             regions,
             vertex_count,
+            root,
             built: false,
             morph_tables: std::sync::OnceLock::new(),
         }
@@ -374,10 +382,22 @@ impl RegionMesh {
         self.vertex_count
     }
 
-    /// Bytes of the shared data of every region.
+    /// The merged root: the whole model as one progressive mesh, from every region at its
+    /// kept level down, its borders free to collapse ([`MergedRoot`]); `None` when the build
+    /// asked for none ([`BuildOptions::root_ratio`](crate::multires::BuildOptions::root_ratio))
+    /// or there is one region.
+    #[inline]
+    #[must_use]
+    pub fn root(&self) -> Option<&MergedRoot> {
+        self.root.as_ref()
+    }
+
+    /// Bytes of the shared data of every region, and of the root.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        self.regions
+        self.root.as_ref().map_or(0, MergedRoot::memory_bytes)
+            + self
+                .regions
             .iter()
             .map(|r| {
                 r.mesh.memory_bytes()
@@ -386,6 +406,6 @@ impl RegionMesh {
                     + r.fin_prone.len() * 4
                     + r.front_events.len() * size_of::<FrontEvent>()
             })
-            .sum()
+            .sum::<usize>()
     }
 }

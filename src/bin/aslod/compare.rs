@@ -35,6 +35,11 @@ pub(crate) struct CompareArgs {
     /// all sides: what the plugin's `RegionSplit::ScreenError` does).
     #[arg(long, default_value = "ratio", value_parser = ["ratio", "error"], requires = "regions")]
     split: String,
+    /// With `--regions`, the merged root's share of the triangles
+    /// (`BuildOptions::root_ratio`): below it the partitioned rows draw the whole model as one
+    /// mesh, as the frontier would for a view of the whole model. `0` draws the regions alone.
+    #[arg(long, default_value_t = 0.3, requires = "regions")]
+    root: f32,
     /// Also compare on this many copies of the mesh turned by pseudo-random rotations (seeds
     /// 1 to N), and print the geometric mean of the ratios: which collapse wins a near-tie
     /// depends on the rounding, so one orientation is one draw.
@@ -307,7 +312,9 @@ struct Report {
 
 /// A ratio with `--regions`: the assembled triangles, their distance to the mesh, and the
 /// whole mesh's distance at that ratio.
-type Partitioned = (usize, Distance, Distance);
+/// Triangles, distance to the source, the whole mesh's at the same ratio, and whether the
+/// merged root was drawn.
+type Partitioned = (usize, Distance, Distance, bool);
 
 /// The default [`BuildOptions`] with `--local-weight`, `--weight-exponent`, `--operator`,
 /// `--normal-weight` and `--uv-weight`.
@@ -327,6 +334,9 @@ fn build_options(args: &CompareArgs) -> BuildOptions {
     }
     if let Some(w) = args.uv_weight {
         build_options.uv_weight = w;
+    }
+    if args.regions.is_some() {
+        build_options.root_ratio = args.root;
     }
     build_options
 }
@@ -426,6 +436,7 @@ fn compare_partitioned(
     let original = MeshRef::new(&mesh.positions, &mesh.indices);
     let mut partitioned = Vec::new();
     let regions = RegionMesh::build(mesh, &partition(mesh, spec)?, build_options)?;
+    let root = regions.root();
     let obbs: Vec<Obb> = regions.regions().iter().map(|r| r.obb()).collect();
     let curves = ErrorCurves::new(&regions, &obbs);
     // Every region seen alike from all sides: its projected area is its box's mean one.
@@ -443,13 +454,28 @@ fn compare_partitioned(
             curves.split(&areas, total, &mut shared);
             counts = shared.into_iter().map(|c| c as usize).collect();
         }
-        let (assembled, _) = assemble(&regions, &counts);
+        let (mut assembled, _) = assemble(&regions, &counts);
+        // The frontier for a view of the whole model: the root once every region would be
+        // at or below its kept level, that is once the total is below the root's finest.
+        let full: usize = regions.regions().iter().map(|r| r.max_triangles()).sum();
+        let target = (ratio * full as f64).round() as usize;
+        let on_root = root.is_some_and(|root| target < root.max_triangles());
+        if let Some(root) = root.filter(|_| on_root) {
+            let pm = root.progressive_mesh();
+            let mut cache = PolygonCache::new(pm);
+            cache.set_triangle_count(pm, target);
+            assembled = cache
+                .indices()
+                .iter()
+                .map(|&v| root.global_vertices()[v as usize])
+                .collect();
+        }
         let d = mesh_distance(
             original,
             MeshRef::new(&mesh.positions, &assembled),
             &options,
         );
-        partitioned.push((assembled.len() / 3, d, row.ours));
+        partitioned.push((assembled.len() / 3, d, row.ours, on_root));
     }
     Ok(partitioned)
 }
@@ -501,8 +527,10 @@ fn print_json(args: &CompareArgs, report: &Report) -> CliResult {
         "partitioned": regions_spec.map(|spec| serde_json::json!({
             "regions": spec,
             "split": args.split,
-            "rows": partitioned.iter().zip(ratios).map(|((n, d, whole), ratio)| serde_json::json!({
+            "root": args.root,
+            "rows": partitioned.iter().zip(ratios).map(|((n, d, whole, on_root), ratio)| serde_json::json!({
                 "ratio": ratio,
+                "frontier": if *on_root { "root" } else { "regions" },
                 "triangles": n,
                 "hausdorff": d.hausdorff,
                 "rms": d.rms,
@@ -645,13 +673,14 @@ fn print_partitioned(spec: &str, by_error: bool, ratios: &[f64], partitioned: &[
     };
     println!("partitioned ({spec}), {how}, against the whole mesh:");
     println!(
-        "{:>6} {:>8} {:>10} {:>10} | {:>9} {:>9}",
-        "ratio", "tris", "hausdorff", "rms", "H vs one", "RMS vs one"
+        "{:>6} {:>8} {:>8} {:>10} {:>10} | {:>9} {:>9}",
+        "ratio", "drawn", "tris", "hausdorff", "rms", "H vs one", "RMS vs one"
     );
-    for ((n, d, whole), ratio) in partitioned.iter().zip(ratios) {
+    for ((n, d, whole, on_root), ratio) in partitioned.iter().zip(ratios) {
         println!(
-            "{:>6} {:>8} {:>10.6} {:>10.6} | {:>9.3} {:>9.3}",
+            "{:>6} {:>8} {:>8} {:>10.6} {:>10.6} | {:>9.3} {:>9.3}",
             ratio,
+            if *on_root { "root" } else { "regions" },
             n,
             d.hausdorff,
             d.rms,
