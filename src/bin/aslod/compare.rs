@@ -8,7 +8,7 @@ use bevy_aslod::mesh::IndexedMesh;
 use bevy_aslod::multires::{
     BuildOptions, CollapseOperator, PolygonCache, ProgressiveMesh, indexed_mesh_bytes,
 };
-use bevy_aslod::regions::{ErrorCurves, RegionMesh};
+use bevy_aslod::regions::{ErrorCurves, MergedRoot, RegionMesh};
 use glam::{Quat, Vec3};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -307,6 +307,8 @@ struct Report {
     rotated: Vec<RotatedRow>,
     /// Per ratio with `--regions`.
     partitioned: Vec<Partitioned>,
+    /// With `--regions`: the regions' bytes, the root's, and the root's finest triangles.
+    partition_sizes: (usize, usize, usize),
     coarsest: Coarsest,
 }
 
@@ -389,11 +391,11 @@ fn measure(args: &CompareArgs) -> Result<Report, Box<dyn std::error::Error>> {
     let source_bytes = indexed_mesh_bytes(&mesh);
     let ours_bytes = pm.memory_bytes();
     let rotated = compare_rotated(&mesh, ratios, args.rotations, &build_options)?;
-    let partitioned = match regions_spec {
+    let (partitioned, partition_sizes) = match regions_spec {
         Some(spec) => {
             compare_partitioned(&mesh, spec, args.split == "error", &rows, &build_options)?
         }
-        None => Vec::new(),
+        None => (Vec::new(), (0, 0, 0)),
     };
     Ok(Report {
         triangles: t,
@@ -409,6 +411,7 @@ fn measure(args: &CompareArgs) -> Result<Report, Box<dyn std::error::Error>> {
         rows,
         rotated,
         partitioned,
+        partition_sizes,
         coarsest,
     })
 }
@@ -431,7 +434,7 @@ fn compare_partitioned(
     by_error: bool,
     rows: &[Row],
     build_options: &BuildOptions,
-) -> Result<Vec<Partitioned>, Box<dyn std::error::Error>> {
+) -> Result<(Vec<Partitioned>, (usize, usize, usize)), Box<dyn std::error::Error>> {
     let options = DistanceOptions::default();
     let original = MeshRef::new(&mesh.positions, &mesh.indices);
     let mut partitioned = Vec::new();
@@ -477,7 +480,13 @@ fn compare_partitioned(
         );
         partitioned.push((assembled.len() / 3, d, row.ours, on_root));
     }
-    Ok(partitioned)
+    let root_bytes = root.map_or(0, MergedRoot::memory_bytes);
+    let sizes = (
+        regions.memory_bytes() - root_bytes,
+        root_bytes,
+        root.map_or(0, MergedRoot::max_triangles),
+    );
+    Ok((partitioned, sizes))
 }
 
 /// Prints the [`Report`] as JSON.
@@ -528,6 +537,9 @@ fn print_json(args: &CompareArgs, report: &Report) -> CliResult {
             "regions": spec,
             "split": args.split,
             "root": args.root,
+            "region_bytes": report.partition_sizes.0,
+            "root_bytes": report.partition_sizes.1,
+            "root_triangles": report.partition_sizes.2,
             "rows": partitioned.iter().zip(ratios).map(|((n, d, whole, on_root), ratio)| serde_json::json!({
                 "ratio": ratio,
                 "frontier": if *on_root { "root" } else { "regions" },
@@ -586,6 +598,7 @@ fn print_table(args: &CompareArgs, report: &Report) {
         ref rows,
         ref rotated,
         ref partitioned,
+        partition_sizes,
         coarsest,
     } = *report;
     println!(
@@ -660,6 +673,10 @@ fn print_table(args: &CompareArgs, report: &Report) {
     );
     if let Some(spec) = regions_spec {
         print_partitioned(spec, args.split == "error", ratios, partitioned);
+        let (regions, root, root_triangles) = partition_sizes;
+        println!(
+            "regions {regions} bytes; merged root {root} bytes ({root_triangles} triangles at its finest)"
+        );
     }
     print_rotated(args.rotations, rotated);
 }
