@@ -157,4 +157,3 @@ impl RegionMesh {
         build_root(&mesh, self, ratio, options)
     }
 }
-

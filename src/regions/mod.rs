@@ -398,14 +398,14 @@ impl RegionMesh {
         self.root.as_ref().map_or(0, MergedRoot::memory_bytes)
             + self
                 .regions
-            .iter()
-            .map(|r| {
-                r.mesh.memory_bytes()
-                    + r.global.len() * 4
-                    + r.border.len() * 4
-                    + r.fin_prone.len() * 4
-                    + r.front_events.len() * size_of::<FrontEvent>()
-            })
-            .sum::<usize>()
+                .iter()
+                .map(|r| {
+                    r.mesh.memory_bytes()
+                        + r.global.len() * 4
+                        + r.border.len() * 4
+                        + r.fin_prone.len() * 4
+                        + r.front_events.len() * size_of::<FrontEvent>()
+                })
+                .sum::<usize>()
     }
 }
