@@ -20,6 +20,41 @@ use crate::multires::{BuildOptions, ProgressiveMesh, build};
 
 /// The whole model as one progressive mesh, from its regions at their kept levels down (see
 /// the [module docs](self)).
+///
+/// ```
+/// use bevy_aslod::mesh::IndexedMesh;
+/// use bevy_aslod::multires::{BuildOptions, PolygonCache};
+/// use bevy_aslod::regions::{GridPlane, Partition, RegionMesh};
+/// use glam::Vec3;
+///
+/// // A bumpy 17x17-vertex patch cut into 2x2 regions, with a root at 30 % of its triangles.
+/// let mut positions = Vec::new();
+/// for z in 0..17 {
+///     for x in 0..17 {
+///         positions.push(Vec3::new(x as f32, ((x * 7 + z * 3) % 5) as f32 * 0.2, z as f32));
+///     }
+/// }
+/// let mut indices = Vec::new();
+/// for z in 0..16u32 {
+///     for x in 0..16u32 {
+///         let i = z * 17 + x;
+///         indices.extend_from_slice(&[i, i + 17, i + 1, i + 1, i + 17, i + 18]);
+///     }
+/// }
+/// let mesh = IndexedMesh::new(positions, indices);
+/// let partition = Partition::grid(&mesh, GridPlane::XZ, 2, 2)?;
+/// let options = BuildOptions::default().with_root_ratio(0.3);
+/// let regions = RegionMesh::build(&mesh, &partition, &options)?;
+/// let root = regions.root().expect("four regions and a ratio above zero");
+/// assert!(root.max_triangles() <= mesh.triangle_count() / 2);
+/// assert_eq!(root.kept_levels().len(), 4);
+/// // Far away the model is one mesh of a few triangles, in source-mesh vertices.
+/// let mut cache = PolygonCache::new(root.progressive_mesh());
+/// cache.set_triangle_count(root.progressive_mesh(), 8);
+/// let drawn: Vec<u32> = cache.indices().iter().map(|&v| root.global_vertices()[v as usize]).collect();
+/// assert!(drawn.len() / 3 <= 8 && drawn.iter().all(|&v| (v as usize) < mesh.vertex_count()));
+/// # Ok::<(), bevy_aslod::regions::RegionError>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct MergedRoot {
     /// The root's sequence, over a local vertex table (the vertices the kept levels use).

@@ -308,7 +308,7 @@ struct Report {
     /// Per ratio with `--regions`.
     partitioned: Vec<Partitioned>,
     /// With `--regions`: the regions' bytes, the root's, and the root's finest triangles.
-    partition_sizes: (usize, usize, usize),
+    partition_sizes: PartitionSizes,
     coarsest: Coarsest,
 }
 
@@ -317,6 +317,9 @@ struct Report {
 /// Triangles, distance to the source, the whole mesh's at the same ratio, and whether the
 /// merged root was drawn.
 type Partitioned = (usize, Distance, Distance, bool);
+
+/// The regions' bytes, the merged root's, and the root's triangles at its finest.
+type PartitionSizes = (usize, usize, usize);
 
 /// The default [`BuildOptions`] with `--local-weight`, `--weight-exponent`, `--operator`,
 /// `--normal-weight` and `--uv-weight`.
@@ -434,7 +437,7 @@ fn compare_partitioned(
     by_error: bool,
     rows: &[Row],
     build_options: &BuildOptions,
-) -> Result<(Vec<Partitioned>, (usize, usize, usize)), Box<dyn std::error::Error>> {
+) -> Result<(Vec<Partitioned>, PartitionSizes), Box<dyn std::error::Error>> {
     let options = DistanceOptions::default();
     let original = MeshRef::new(&mesh.positions, &mesh.indices);
     let mut partitioned = Vec::new();
