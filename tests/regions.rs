@@ -249,6 +249,39 @@ fn arb_partition(mesh: &IndexedMesh, choice: u8, n: usize, seed: u64) -> Partiti
     }
 }
 
+/// `indices` (into `mesh`'s vertices) have no crack: closed where `mesh` is closed, and
+/// otherwise every edge used once and open only along `mesh`'s own border.
+fn check_crack_free(
+    mesh: &IndexedMesh,
+    closed: bool,
+    indices: &[u32],
+    context: &str,
+) -> Result<(), TestCaseError> {
+    if closed {
+        assert_closed(&mesh.positions, indices, context);
+        return Ok(());
+    }
+    let outline = border_edges(&mesh.positions, &mesh.indices);
+    let on_outline: std::collections::HashSet<u32> =
+        outline.iter().flat_map(|&(a, b)| [a, b]).collect();
+    let weld = bevy_aslod::mesh::weld_positions(&mesh.positions);
+    let edges = welded_directed_edges(&mesh.positions, indices);
+    for (&(a, b), &count) in &edges {
+        prop_assert_eq!(count, 1, "{}: edge {}->{} used twice", context, a, b);
+        if !edges.contains_key(&(b, a)) {
+            prop_assert!(
+                on_outline.contains(&weld.remap[a as usize])
+                    && on_outline.contains(&weld.remap[b as usize]),
+                "{}: open edge {}->{} off the original border",
+                context,
+                a,
+                b
+            );
+        }
+    }
+    Ok(())
+}
+
 // Long runs: `PROPTEST_CASES=20000 PROPTEST_RNG_SEED=1` (and other seeds); the folds they
 // used to find are the regression tests `fold_across_two_stretches_of_a_front` and
 // `fold_in_a_band_that_closes_on_itself`.
@@ -269,10 +302,6 @@ proptest! {
         let total: usize = regions.regions().iter().map(|r| r.max_triangles()).sum();
         prop_assert_eq!(total, mesh.triangle_count(), "every triangle has one owner");
         let mut caches = RegionCaches::new(&regions);
-        let outline = border_edges(&mesh.positions, &mesh.indices);
-        let on_outline: std::collections::HashSet<u32> =
-            outline.iter().flat_map(|&(a, b)| [a, b]).collect();
-        let weld = bevy_aslod::mesh::weld_positions(&mesh.positions);
         // What a renderer that rewrites only dirty regions holds.
         let mut kept = vec![Vec::new(); regions.regions().len()];
         for (region, f) in moves {
@@ -286,22 +315,7 @@ proptest! {
             }
             let assembled = assemble(&regions, &mut caches);
             prop_assert_eq!(&kept.concat(), &assembled, "a clean region's buffer is stale");
-            if closed {
-                assert_closed(&mesh.positions, &assembled, "mixed levels");
-            } else {
-                // No crack inside; the only open edges run along the original border.
-                let edges = welded_directed_edges(&mesh.positions, &assembled);
-                for (&(a, b), &count) in &edges {
-                    prop_assert_eq!(count, 1, "edge {}->{} used twice", a, b);
-                    if !edges.contains_key(&(b, a)) {
-                        prop_assert!(
-                            on_outline.contains(&weld.remap[a as usize])
-                                && on_outline.contains(&weld.remap[b as usize]),
-                            "open edge {}->{} off the original border", a, b
-                        );
-                    }
-                }
-            }
+            check_crack_free(&mesh, closed, &assembled, "mixed levels")?;
         }
         // The walk leaves the same buffers as going straight to its final levels.
         let mut fresh = RegionCaches::new(&regions);
@@ -784,10 +798,6 @@ proptest! {
         };
         prop_assert_eq!(triangle_multiset(&at(&cache)), triangle_multiset(&kept));
         prop_assert!(root.max_triangles() <= mesh.triangle_count());
-        let outline = border_edges(&mesh.positions, &mesh.indices);
-        let on_outline: std::collections::HashSet<u32> =
-            outline.iter().flat_map(|&(a, b)| [a, b]).collect();
-        let weld = bevy_aslod::mesh::weld_positions(&mesh.positions);
         for f in steps {
             cache.set_triangle_count(pm, (f * root.max_triangles() as f64) as usize);
             let level = at(&cache);
@@ -795,21 +805,7 @@ proptest! {
             for &v in cache.indices() {
                 prop_assert_eq!(pm.vertices().positions[v as usize], mesh.positions[global[v as usize] as usize]);
             }
-            if closed {
-                assert_closed(&mesh.positions, &level, "a root level");
-            } else {
-                let edges = welded_directed_edges(&mesh.positions, &level);
-                for (&(a, b), &count) in &edges {
-                    prop_assert_eq!(count, 1, "edge {}->{} used twice", a, b);
-                    if !edges.contains_key(&(b, a)) {
-                        prop_assert!(
-                            on_outline.contains(&weld.remap[a as usize])
-                                && on_outline.contains(&weld.remap[b as usize]),
-                            "open edge {}->{} off the original border", a, b
-                        );
-                    }
-                }
-            }
+            check_crack_free(&mesh, closed, &level, "a root level")?;
         }
     }
 }
