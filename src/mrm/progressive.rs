@@ -710,7 +710,10 @@ mod tests {
             }
         );
         let bytes = super::super::write_progressive(&pm);
-        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 4);
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
+            FORMAT_VERSION
+        );
         let sections = super::super::sections(&bytes).unwrap();
         assert!(sections.contains(&("FLDS".into(), 2)), "{sections:?}");
         let back = super::super::read_progressive(&bytes).unwrap();
@@ -732,13 +735,13 @@ mod tests {
         let v3 = rewritten(&v4, 3, without_fields);
         assert_eq!(outcome(&v3), Ok(Fields::CLASSIC));
         assert_eq!(super::super::read_progressive(&v3).unwrap(), pm);
-        // Written again, it is a version 4 file with the classic widths.
+        // Written again, it is a current file with the classic widths.
         assert_eq!(super::super::write_progressive(&pm), v4);
         let fields = Fields::CLASSIC;
         assert_eq!(
             rewritten(
                 &v4,
-                4,
+                FORMAT_VERSION,
                 with_fields(&[fields.pair_bits, fields.removed_bits])
             ),
             v4
