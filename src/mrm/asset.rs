@@ -201,11 +201,13 @@ fn write_root(root: &MergedRoot) -> Vec<u8> {
 }
 
 /// The merged root of an asset whose regions are `regions` (checked: its vertices in the
-/// source's table, one kept level per region, each one of that region's levels).
+/// source's table, one kept level per region, each one of that region's levels);
+/// `vertex_bytes` per vertex copied, as the regions count them.
 fn read_root(
     s: Section<'_>,
     version: u32,
     source: &crate::mesh::IndexedMesh,
+    vertex_bytes: usize,
     regions: &[Region],
     tally: &mut Tally<'_>,
 ) -> Result<MergedRoot, MrmError> {
@@ -226,17 +228,8 @@ fn read_root(
     if kept_count != regions.len() {
         return Err(r.invalid(24, "the kept level count differs from the region count"));
     }
-    let vertex_bytes = source.memory_bytes() / source.vertex_count().max(1);
     tally.add(local, vertex_bytes, counts.indices / 3)?;
-    let (global, rg) =
-        Reader::whole::<4, _>(section(&sections, b"GLOB")?, local, u32::from_le_bytes)?;
-    if let Some(k) = global
-        .iter()
-        .position(|&g| g as usize >= source.vertex_count())
-    {
-        return Err(rg.invalid(4 * k, "a vertex names one past the source's vertex table"));
-    }
-    let vertices = source.subset(&global);
+    let (global, vertices) = read_global(&sections, local, source)?;
     let mesh = progressive::read_mesh(&sections, &r, version, vertices, &counts, narrow, 0)?;
     let (kept, rk) =
         Reader::whole::<4, _>(section(&sections, b"KEPT")?, kept_count, u32::from_le_bytes)?;
@@ -607,7 +600,14 @@ fn read_entry(
         None
     };
     let root = match sections.iter().find(|s| &s.tag == b"ROOT") {
-        Some(&s) => Some(read_root(s, version, &source, &regions, tally)?),
+        Some(&s) => Some(read_root(
+            s,
+            version,
+            &source,
+            vertex_bytes,
+            &regions,
+            tally,
+        )?),
         None => None,
     };
     Ok(BakedMesh {
@@ -643,6 +643,25 @@ impl Tally<'_> {
         within("triangles", self.triangles, self.limits.triangles)?;
         within("decoded_bytes", self.decoded, self.limits.decoded_bytes)
     }
+}
+
+/// The `GLOB` section of a region or of the root: `local` source vertex ids, each within
+/// the source's vertex table, and those vertices.
+fn read_global(
+    sections: &[Section<'_>],
+    local: usize,
+    source: &crate::mesh::IndexedMesh,
+) -> Result<(Vec<u32>, crate::mesh::IndexedMesh), MrmError> {
+    let (global, rg) =
+        Reader::whole::<4, _>(section(sections, b"GLOB")?, local, u32::from_le_bytes)?;
+    if let Some(k) = global
+        .iter()
+        .position(|&g| g as usize >= source.vertex_count())
+    {
+        return Err(rg.invalid(4 * k, "a vertex names one past the source's vertex table"));
+    }
+    let vertices = source.subset(&global);
+    Ok((global, vertices))
 }
 
 fn read_region(
@@ -681,15 +700,7 @@ fn read_region(
     if lo.cmpgt(hi).any() {
         return Err(r.invalid(32, "the bounds' minimum is above their maximum"));
     }
-    let (global, rg) =
-        Reader::whole::<4, _>(section(&sections, b"GLOB")?, local, u32::from_le_bytes)?;
-    if let Some(k) = global
-        .iter()
-        .position(|&g| g as usize >= source.vertex_count())
-    {
-        return Err(rg.invalid(4 * k, "a vertex names one past the source's vertex table"));
-    }
-    let vertices = source.subset(&global);
+    let (global, vertices) = read_global(&sections, local, source)?;
     let mesh = progressive::read_mesh(&sections, &r, version, vertices, &counts, narrow, has_view)?;
 
     let mut rl = Reader::new(section(&sections, b"LIST")?);

@@ -110,9 +110,9 @@ impl MergedRoot {
     }
 }
 
-/// Builds the root of `regions` (made from `mesh`, validated) at `ratio` of the regions'
-/// full-detail triangles: the regions' kept levels share that many triangles at equal error,
-/// every region seen alike from all sides.
+/// Builds the root of `regions` (made from `mesh`, validated) at `ratio` (in `0..=1`) of the
+/// regions' full-detail triangles: the regions' kept levels share that many triangles at
+/// equal error, every region seen alike from all sides.
 pub(crate) fn build_root(
     mesh: &IndexedMesh,
     regions: &RegionMesh,
@@ -123,7 +123,7 @@ pub(crate) fn build_root(
     let curves = ErrorCurves::new(regions, &obbs);
     let areas: Vec<f32> = obbs.iter().map(Obb::mean_projected_area).collect();
     let full: usize = regions.regions().iter().map(|r| r.max_triangles()).sum();
-    let total = (f64::from(ratio.clamp(0.0, 1.0)) * full as f64).round() as u32;
+    let total = (f64::from(ratio) * full as f64).round() as u32;
     let mut counts = vec![0u32; regions.regions().len()];
     curves.split(&areas, total, &mut counts);
 
@@ -166,29 +166,4 @@ pub(crate) fn build_root(
         global,
         kept,
     })
-}
-
-impl RegionMesh {
-    /// The root of these regions at `ratio` of their triangles (see [`MergedRoot`]); `mesh`
-    /// is the mesh they were built from.
-    ///
-    /// # Errors
-    /// [`RegionError::PartitionMismatch`] when `mesh` has another vertex count than the
-    /// regions, and any [`MeshError`](crate::mesh::MeshError) from validating it.
-    pub fn merged_root(
-        &self,
-        mesh: &IndexedMesh,
-        ratio: f32,
-        options: &BuildOptions,
-    ) -> Result<MergedRoot, RegionError> {
-        if mesh.vertex_count() != self.vertex_count() {
-            return Err(RegionError::PartitionMismatch {
-                expected: mesh.vertex_count(),
-                found: self.vertex_count(),
-            });
-        }
-        let mut mesh = mesh.clone();
-        mesh.validate()?;
-        build_root(&mesh, self, ratio, options)
-    }
 }

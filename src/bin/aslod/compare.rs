@@ -447,6 +447,7 @@ fn compare_partitioned(
     let curves = ErrorCurves::new(&regions, &obbs);
     // Every region seen alike from all sides: its projected area is its box's mean one.
     let areas: Vec<f32> = obbs.iter().map(Obb::mean_projected_area).collect();
+    let full: usize = regions.regions().iter().map(|r| r.max_triangles()).sum();
     for row in rows {
         let ratio = row.ratio;
         let mut counts: Vec<usize> = regions
@@ -460,22 +461,23 @@ fn compare_partitioned(
             curves.split(&areas, total, &mut shared);
             counts = shared.into_iter().map(|c| c as usize).collect();
         }
-        let (mut assembled, _) = assemble(&regions, &counts);
         // The frontier for a view of the whole model: the root once every region would be
         // at or below its kept level, that is once the total is below the root's finest.
-        let full: usize = regions.regions().iter().map(|r| r.max_triangles()).sum();
         let target = (ratio * full as f64).round() as usize;
         let on_root = root.is_some_and(|root| target < root.max_triangles());
-        if let Some(root) = root.filter(|_| on_root) {
-            let pm = root.progressive_mesh();
-            let mut cache = PolygonCache::new(pm);
-            cache.set_triangle_count(pm, target);
-            assembled = cache
-                .indices()
-                .iter()
-                .map(|&v| root.global_vertices()[v as usize])
-                .collect();
-        }
+        let assembled = match root.filter(|_| on_root) {
+            Some(root) => {
+                let pm = root.progressive_mesh();
+                let mut cache = PolygonCache::new(pm);
+                cache.set_triangle_count(pm, target);
+                cache
+                    .indices()
+                    .iter()
+                    .map(|&v| root.global_vertices()[v as usize])
+                    .collect()
+            }
+            None => assemble(&regions, &counts).0,
+        };
         let d = mesh_distance(
             original,
             MeshRef::new(&mesh.positions, &assembled),

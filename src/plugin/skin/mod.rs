@@ -62,7 +62,7 @@ pub struct MultiresSkin {
 /// the model is skinned on the CPU, in `Deform`.
 pub(super) fn skinned_on_gpu(binding: &SkinBinding, joints: Option<&MultiresSkin>) -> bool {
     joints.is_some_and(|j| j.joints.len() >= binding.joint_count())
-        && (0..binding.kinds.len()).all(|r| binding.region_joints[r].len() <= MAX_JOINTS)
+        && binding.region_joints.iter().all(|j| j.len() <= MAX_JOINTS)
 }
 
 /// Per-region deformation state of one instance.
